@@ -343,7 +343,7 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray | None = None):
     eye = np.asarray(eye, dtype=float)
     z = np.asarray(target, dtype=float) - eye
     z = z / np.linalg.norm(z, axis=-1, keepdims=True)
-    x = np.cross(z, -np.broadcast_to(up, z.shape))
+    x = np.cross(z, np.broadcast_to(up, z.shape))
     n = np.linalg.norm(x, axis=-1, keepdims=True)
     # Looking straight along up: pick any perpendicular x.
     alt = np.cross(z, np.broadcast_to([1.0, 0.0, 0.0], z.shape))

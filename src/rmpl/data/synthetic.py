@@ -1,0 +1,167 @@
+"""Synthetic 2D-3D training pairs, generated as whole arrays (no per-sample Python).
+
+A :class:`PairSource` turns a bank of real 3D poses into batches: each pose is mirrored,
+scaled, turned and placed at random in a room, seen by a random camera setup (RCS), and
+passed through a 2D detector model (:mod:`rmpl.synth.noise`). The batch holds the rays the
+lifter sees, their confidences and the 3D targets. Rendered MHP shards
+(:mod:`rmpl.synth.generate`) feed the same :class:`Batch` through :class:`ShardSource`, so the
+trainer does not care where pairs come from.
+
+Shape glossary: ``B`` batch, ``V`` views, ``J`` joints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rmpl.geometry.camera import rodrigues
+from rmpl.geometry.rays import rays_from_keypoints
+from rmpl.skeleton import COCO17
+from rmpl.synth.noise import NoiseConfig, detect_like
+
+__all__ = ["Batch", "PairSource", "SamplerConfig", "place_poses", "perturb_extrinsics"]
+
+
+@dataclass
+class Batch:
+    """One batch of training pairs.
+
+    Attributes:
+        rays: (B, V, J, 6) float32, origin + unit direction, world metres (z up).
+        scores: (B, V, J) float32, 0 = missing.
+        target: (B, J, 3) float32, world metres.
+        keypoints: (B, V, J, 2) pixels, NaN = missing (kept for baselines).
+        K, R, t: (B, V, 3, 3), (B, V, 3, 3), (B, V, 3) the cameras used for the rays.
+    """
+
+    rays: np.ndarray
+    scores: np.ndarray
+    target: np.ndarray
+    keypoints: np.ndarray
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """How synthetic scenes are drawn.
+
+    Attributes:
+        camera_preset: random camera setup preset (see :mod:`rmpl.synth.cameras`).
+        room: half-extent of the square floor area where people stand, metres.
+        scale_range: uniform range of a body-size factor.
+        mirror: probability of a left/right mirrored pose.
+        drop_rate: random keypoint removal at training (thesis 6.11.2).
+        calib_noise_deg: std of extrinsic rotation noise on the rays (0 = off).
+        calib_noise_m: std of extrinsic translation noise on the rays, metres.
+    """
+
+    camera_preset: str = "universal"
+    room: float = 2.0
+    scale_range: tuple[float, float] = (0.85, 1.12)
+    mirror: float = 0.5
+    drop_rate: float = 0.2
+    calib_noise_deg: float = 0.0
+    calib_noise_m: float = 0.0
+
+
+def place_poses(poses: np.ndarray, rng: np.random.Generator, cfg: SamplerConfig) -> np.ndarray:
+    """Mirror, scale, turn about z and place poses on the floor of a room.
+
+    Args:
+        poses: (B, J, 3) COCO-17 joints, metres, z up.
+
+    Returns:
+        (B, J, 3) placed poses.
+    """
+    B = poses.shape[0]
+    mirror = rng.random(B) < cfg.mirror
+    flipped = poses[:, COCO17.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
+    poses = np.where(mirror[:, None, None], flipped, poses)
+    root = poses[:, 11:13].mean(1)  # mid-hip
+    floor = np.nanmin(poses[..., 2], axis=1)
+    origin = np.stack([root[:, 0], root[:, 1], floor], -1)[:, None]
+    scale = rng.uniform(*cfg.scale_range, (B, 1, 1))
+    yaw = rng.uniform(-np.pi, np.pi, B)
+    Rz = rodrigues(np.stack([np.zeros(B), np.zeros(B), yaw], -1))
+    local = np.einsum("bij,bnj->bni", Rz, (poses - origin) * scale)
+    place = np.concatenate([rng.uniform(-cfg.room, cfg.room, (B, 2)), np.zeros((B, 1))], -1)
+    return local + place[:, None]
+
+
+def perturb_extrinsics(
+    R: np.ndarray, t: np.ndarray, deg: float, metres: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Calibration error: rotate each camera by ~N(0, deg) and move its centre by ~N(0, m).
+
+    Args:
+        R: (*, 3, 3). t: (*, 3).
+
+    Returns:
+        Perturbed (R, t), same shapes.
+    """
+    lead = R.shape[:-2]
+    axis = rng.standard_normal((*lead, 3))
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    angle = np.deg2rad(deg) * rng.standard_normal((*lead, 1))
+    dR = rodrigues(axis * angle)
+    C = -np.einsum("...ji,...j->...i", R, t) + metres * rng.standard_normal((*lead, 3))
+    R2 = dR @ R
+    return R2, -np.einsum("...ij,...j->...i", R2, C)
+
+
+class PairSource:
+    """Fresh synthetic pairs from a pose bank, as whole arrays.
+
+    Args:
+        poses: (N, J, 3) COCO-17 poses, metres, z up.
+        sampler: scene sampling parameters.
+        noise: detector noise model.
+        seed: random seed (a fixed seed gives a fixed validation set).
+    """
+
+    def __init__(
+        self,
+        poses: np.ndarray,
+        sampler: SamplerConfig | None = None,
+        noise: NoiseConfig | None = None,
+        seed: int | None = None,
+    ) -> None:
+        self.poses = np.asarray(poses, dtype=np.float64)
+        if self.poses.ndim != 3 or self.poses.shape[1:] != (17, 3):
+            raise ValueError(f"poses must have shape (N, 17, 3), got {self.poses.shape}")
+        self.sampler = sampler or SamplerConfig()
+        self.noise = noise or NoiseConfig()
+        self.rng = np.random.default_rng(seed)
+
+    def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
+        """Draw ``size`` scenes seen by ``num_views`` cameras."""
+        from rmpl.synth.cameras import sample_cameras
+
+        rng, cfg = self.rng, self.sampler
+        idx = rng.integers(0, len(self.poses), size)
+        joints = place_poses(self.poses[idx], rng, cfg)
+        center = joints[:, 11:13].mean(1)
+        K, R, t, wh = sample_cameras(num_views, center, cfg.camera_preset, rng)
+        kp, scores = detect_like(joints, K, R, t, wh, rng, self.noise)
+        if train and cfg.drop_rate > 0:
+            drop = rng.random(scores.shape) < cfg.drop_rate
+            scores = np.where(drop, 0.0, scores)
+            kp = np.where(drop[..., None], np.nan, kp)
+        Rr, tr = R, t
+        if cfg.calib_noise_deg > 0 or cfg.calib_noise_m > 0:
+            Rr, tr = perturb_extrinsics(R, t, cfg.calib_noise_deg, cfg.calib_noise_m, rng)
+        rays = rays_from_keypoints(kp, K=K, R=Rr, t=tr)
+        rays = np.where(scores[..., None] > 0, rays, 0.0)
+        return Batch(
+            rays.astype(np.float32),
+            scores.astype(np.float32),
+            joints.astype(np.float32),
+            kp,
+            K,
+            Rr,
+            tr,
+        )

@@ -1,0 +1,261 @@
+"""RMPL: the View Fusion Transformer + Pose Fusion Transformer lifter (thesis chapter 4).
+
+Input: for every view ``v`` and joint ``j`` a 3D ray (camera centre, unit direction) and the
+detector's confidence; a zero confidence marks a missing keypoint, which is masked out of
+attention (never fed as a fake ray). Output: joint positions in world metres.
+
+Geometry the network is given (each switchable in :class:`RMPLConfig` for ablations):
+
+- **Recentering** (thesis 6.4.3): rays are expressed relative to a person anchor ``P``, the
+  confidence-weighted mean of the per-joint least-squares ray intersections (weights: the
+  minimum confidence over the views that see the joint). A person whose joints are all seen
+  in a single view gets ``P`` on that view's mean ray at a depth set by the angular size of
+  the keypoints. Without recentering the world origin is used.
+- **Geometric tokens** (``geometric=True``): each joint has a base point ``b_j``, its own
+  ray intersection when two or more views see it, else ``P``. Each view token also carries
+  the perpendicular offset from ``b_j`` to its ray, the joint token carries ``b_j - P`` and
+  visibility flags, and the zero-initialised head predicts a correction to ``b_j``; the
+  network starts at triangulation and learns what it cannot do.
+
+Shape glossary: ``B`` batch, ``V`` views, ``J`` joints, ``D`` model width.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+import torch
+from torch import nn
+
+from rmpl.model.layers import Encoder
+
+__all__ = ["RMPLConfig", "RMPL", "PRESETS", "anchors_from_rays"]
+
+ORIGIN_SCALE = 4.0  # metres: camera offsets are divided by this
+PERP_SCALE = 0.25  # metres: ray-to-anchor offsets are divided by this
+BODY_SPREAD = 0.42  # metres: RMS distance of COCO joints from their centroid, standing adult
+
+
+@dataclass(frozen=True)
+class RMPLConfig:
+    """Architecture of an :class:`RMPL` lifter.
+
+    Attributes:
+        num_joints: J, joints per pose.
+        dim: D, token width.
+        depth_view: blocks in the View Fusion Transformer.
+        depth_pose: blocks in the Pose Fusion Transformer.
+        heads: attention heads.
+        mlp_ratio: MLP hidden width / D.
+        drop_path: stochastic depth rate (max, linearly increasing).
+        confidence: embed the detector confidence (D/2 of each token); False zeroes it.
+        recenter: express rays relative to the person anchor (thesis 6.4.3).
+        geometric: per-joint anchors, perpendicular-offset features and a residual head.
+        skeleton: name of the joint set (see :data:`rmpl.skeleton.SKELETONS`).
+    """
+
+    num_joints: int = 17
+    dim: int = 128
+    depth_view: int = 4
+    depth_pose: int = 4
+    heads: int = 4
+    mlp_ratio: float = 2.0
+    drop_path: float = 0.0
+    confidence: bool = True
+    recenter: bool = True
+    geometric: bool = True
+    skeleton: str = "coco17"
+
+    @classmethod
+    def from_dict(cls, d: dict) -> RMPLConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"unknown RMPLConfig keys {sorted(unknown)}; known: {sorted(known)}")
+        return cls(**d)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    def with_(self, **overrides) -> RMPLConfig:
+        return replace(self, **overrides)
+
+
+#: Named architectures. ``paper`` is the thesis model (D=256, H=8, L=12, MLP ratio 2).
+PRESETS: dict[str, RMPLConfig] = {
+    "paper": RMPLConfig(dim=256, depth_view=12, depth_pose=12, heads=8, drop_path=0.1),
+    "small": RMPLConfig(dim=128, depth_view=4, depth_pose=4, heads=4),
+    "tiny": RMPLConfig(dim=64, depth_view=2, depth_pose=2, heads=4),
+}
+
+
+def _solve3(A: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Solve A x = b for 3x3 A by the adjugate (ONNX friendly).
+
+    Returns x (*, 3) and a conditioning measure det / (trace / 3)^3, shape (*,).
+    """
+    a, bb, c = A[..., 0, 0], A[..., 0, 1], A[..., 0, 2]
+    d, e, f = A[..., 1, 0], A[..., 1, 1], A[..., 1, 2]
+    g, h, i = A[..., 2, 0], A[..., 2, 1], A[..., 2, 2]
+    co = torch.stack(
+        [
+            torch.stack([e * i - f * h, c * h - bb * i, bb * f - c * e], -1),
+            torch.stack([f * g - d * i, a * i - c * g, c * d - a * f], -1),
+            torch.stack([d * h - e * g, bb * g - a * h, a * e - bb * d], -1),
+        ],
+        -2,
+    )
+    det = a * co[..., 0, 0] + bb * co[..., 1, 0] + c * co[..., 2, 0]
+    tr = (a + e + i) / 3
+    cond = det / (tr**3).clamp_min(1e-12)
+    safe = torch.where(det.abs() > 1e-12, det, torch.ones_like(det))
+    x = (co @ b.unsqueeze(-1)).squeeze(-1) / safe.unsqueeze(-1)
+    return x, cond
+
+
+def anchors_from_rays(
+    rays: torch.Tensor, scores: torch.Tensor, max_offset: float = 1.5
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Per-joint ray intersections and the person anchor.
+
+    Args:
+        rays: (B, V, J, 6) origin + unit direction, finite (missing views have score 0).
+        scores: (B, V, J) confidences, 0 = missing.
+        max_offset: joint intersections farther than this (metres) from the anchor are
+            treated as failed.
+
+    Returns:
+        joint_points (B, J, 3), joint_valid (B, J) bool (>= 2 non-parallel views),
+        person anchor (B, 3).
+    """
+    o, d = rays[..., :3], rays[..., 3:]
+    w = scores.clamp_min(0)
+    seen = w > 0
+    eye = torch.eye(3, dtype=rays.dtype, device=rays.device)
+    M = eye - d.unsqueeze(-1) * d.unsqueeze(-2)  # (B, V, J, 3, 3)
+    A = (w[..., None, None] * M).sum(1)  # (B, J, 3, 3)
+    b = (w[..., None, None] * M @ o.unsqueeze(-1)).squeeze(-1).sum(1)  # (B, J, 3)
+    X, cond = _solve3(A, b)
+    valid = (seen.sum(1) >= 2) & (cond > 1e-4)
+    # Joint weight: the minimum confidence over the views that see it (thesis 6.4.3).
+    wmin = torch.where(seen, w, torch.full_like(w, 2.0)).amin(1)
+    wj = torch.where(valid, wmin, torch.zeros_like(wmin))
+    total = wj.sum(-1, keepdim=True)
+    P_tri = (torch.where(valid[..., None], X, torch.zeros_like(X)) * wj[..., None]).sum(1)
+    P_tri = P_tri / total.clamp_min(1e-9)
+    # Outlying joint intersections (bad matches, near-parallel rays) fall back to the anchor.
+    valid = valid & ((X - P_tri[:, None]).norm(dim=-1) < max_offset)
+    wj = torch.where(valid, wmin, torch.zeros_like(wmin))
+    total = wj.sum(-1, keepdim=True)
+    P_tri = (torch.where(valid[..., None], X, torch.zeros_like(X)) * wj[..., None]).sum(1)
+    P_tri = P_tri / total.clamp_min(1e-9)
+    P = torch.where(total > 0, P_tri, _single_view_anchor(o, d, w))
+    X = torch.where(valid[..., None], X, P[:, None].expand_as(X))
+    return X, valid, P
+
+
+def _single_view_anchor(o: torch.Tensor, d: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+    """Anchor from the most confident view alone: on its mean ray, at the depth where the
+    keypoints' angular spread matches a standing adult's. Shapes as in anchors_from_rays."""
+    best = w.sum(-1).argmax(1)  # (B,)
+    idx = best[:, None, None, None].expand(-1, 1, *o.shape[2:])
+    ob, db = o.gather(1, idx)[:, 0], d.gather(1, idx)[:, 0]  # (B, J, 3)
+    wb = w.gather(1, best[:, None, None].expand(-1, 1, w.shape[-1]))[:, 0]  # (B, J)
+    tot = wb.sum(-1, keepdim=True).clamp_min(1e-9)
+    m = (db * wb[..., None]).sum(1) / tot  # (B, 3)
+    spread = (((db - m[:, None]) ** 2).sum(-1) * wb).sum(-1, keepdim=True) / tot
+    depth = (BODY_SPREAD / spread.sqrt().clamp_min(1e-3)).clamp(0.5, 30.0)
+    m = m / m.norm(dim=-1, keepdim=True).clamp_min(1e-9)
+    origin = (ob * wb[..., None]).sum(1) / tot
+    anchor = origin + depth * m
+    # No keypoint at all: the world origin.
+    return torch.where(wb.sum(-1, keepdim=True) > 0, anchor, torch.zeros_like(anchor))
+
+
+class RMPL(nn.Module):
+    """The lifter. ``forward(rays, scores) -> joints``.
+
+    >>> import torch
+    >>> model = RMPL(PRESETS["tiny"]).eval()
+    >>> rays = torch.randn(2, 3, 17, 6); rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
+    >>> model(rays, torch.rand(2, 3, 17)).shape
+    torch.Size([2, 17, 3])
+    """
+
+    def __init__(self, config: RMPLConfig | None = None) -> None:
+        super().__init__()
+        self.config = c = config or RMPLConfig()
+        half = c.dim // 2
+        ray_features = 9 if c.geometric else 6
+        self.ray_embed = nn.Linear(ray_features, half)
+        self.conf_embed = nn.Linear(1, c.dim - half)
+        self.fusion_token = nn.Parameter(torch.zeros(1, 1, c.dim))
+        self.view_encoder = Encoder(c.dim, c.depth_view, c.heads, c.mlp_ratio, c.drop_path)
+        self.anatomy = nn.Parameter(torch.zeros(1, c.num_joints, c.dim))
+        self.joint_embed = nn.Linear(6, c.dim) if c.geometric else None
+        self.pose_encoder = Encoder(c.dim, c.depth_pose, c.heads, c.mlp_ratio, c.drop_path)
+        self.head = nn.Linear(c.dim, 3)
+        self._init()
+
+    def _init(self) -> None:
+        nn.init.trunc_normal_(self.fusion_token, std=0.02)
+        nn.init.trunc_normal_(self.anatomy, std=0.02)
+        for m in self.modules():
+            if isinstance(m, nn.Linear):
+                nn.init.trunc_normal_(m.weight, std=0.02)
+                nn.init.zeros_(m.bias)
+        if self.config.geometric:  # start at the triangulated solution
+            nn.init.zeros_(self.head.weight)
+
+    @property
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+    def forward(self, rays: torch.Tensor, scores: torch.Tensor) -> torch.Tensor:
+        """Lift rays to 3D joints.
+
+        Args:
+            rays: (B, V, J, 6) origin (metres) + unit direction, in a z-up world.
+            scores: (B, V, J) confidences in [0, 1]; 0 (or a non-finite ray) = missing.
+
+        Returns:
+            Joints, shape (B, J, 3), world metres.
+        """
+        c = self.config
+        B, V, J, _ = rays.shape
+        if J != c.num_joints:
+            raise ValueError(f"model expects {c.num_joints} joints, got rays of shape {tuple(rays.shape)}")
+        ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
+        rays = torch.where(ok[..., None], rays, torch.zeros_like(rays))
+        scores = torch.where(ok, scores, torch.zeros_like(scores))
+        o, d = rays[..., :3], rays[..., 3:]
+
+        if c.recenter or c.geometric:
+            base, valid, P = anchors_from_rays(rays, scores)
+        if not c.recenter:
+            P = torch.zeros(B, 3, dtype=rays.dtype, device=rays.device)
+        feats = [(o - P[:, None, None]) / ORIGIN_SCALE, d]
+        if c.geometric:
+            rel = o - base[:, None]  # (B, V, J, 3)
+            perp = rel - (rel * d).sum(-1, keepdim=True) * d
+            feats.append((perp / PERP_SCALE).clamp(-8, 8))
+        x = torch.cat(feats, -1)
+        conf = scores[..., None] if c.confidence else torch.zeros_like(scores[..., None])
+        tokens = torch.cat([self.ray_embed(x), self.conf_embed(conf)], -1)  # (B, V, J, D)
+        tokens = tokens.permute(0, 2, 1, 3).reshape(B * J, V, c.dim)  # views of one joint
+        fusion = self.fusion_token.expand(B * J, 1, c.dim)
+        mask = torch.cat(
+            [torch.ones(B * J, 1, dtype=torch.bool, device=rays.device),
+             ok.permute(0, 2, 1).reshape(B * J, V)], 1
+        )  # fmt: skip
+        fused = self.view_encoder(torch.cat([fusion, tokens], 1), mask)[:, 0]
+        y = fused.view(B, J, c.dim) + self.anatomy
+        if c.geometric:
+            n = ok.sum(1).to(rays.dtype)  # (B, J)
+            jf = torch.cat(
+                [base - P[:, None], valid[..., None].to(rays.dtype),
+                 (n[..., None] / 4).clamp(max=2), (n[..., None] > 0).to(rays.dtype)], -1
+            )  # fmt: skip
+            y = y + self.joint_embed(jf)
+        out = self.head(self.pose_encoder(y))
+        return (base if c.geometric else P[:, None]) + out

@@ -1,0 +1,278 @@
+"""Training the lifter (thesis 6.3 / 6.11 / 6.13), resumable, with atomic checkpoints.
+
+The recipe: Adam with weight decay, lr steps x0.1 at 50 % and 75 % of training, MPJPE loss,
+a random number of views per batch, random keypoint removal, optional calibration noise.
+
+A run directory holds ``model.safetensors`` + ``config.json`` (a self-describing checkpoint
+that :class:`rmpl.Lifter` loads), ``state.pt`` (optimizer, step, RNG: for resuming) and
+``log.jsonl`` (one line per validation). Killing a run loses at most the steps since the
+last checkpoint; running the same command again resumes.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rmpl.data.synthetic import PairSource, SamplerConfig
+from rmpl.geometry.triangulate import _dlt
+from rmpl.io.atomic import atomic_path
+from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig
+from rmpl.skeleton import COCO17, KP_STAR
+from rmpl.synth.noise import NoiseConfig
+
+__all__ = ["TrainConfig", "train", "save_checkpoint", "load_checkpoint", "validation_sets"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything a training run needs; load with :meth:`from_toml`.
+
+    Attributes:
+        poses: path to a pose bank (``.npz`` from ``rmpl poses``) or a motion directory.
+        holdout: subjects kept out of training, used for validation.
+        preset: architecture preset (see :data:`rmpl.model.PRESETS`).
+        model: overrides of the preset's :class:`RMPLConfig` fields.
+        steps: optimizer steps.
+        batch_size: samples per step.
+        lr: initial learning rate (x0.1 at 50 % and 75 % of the steps).
+        weight_decay: Adam weight decay.
+        min_views, max_views: each batch has a number of views drawn in this range.
+        single_view_rate: probability of a one-view batch (when min_views is 1).
+        val_every: steps between validations and checkpoints.
+        val_size: samples per validation view count.
+        seed: random seed.
+        threads: torch CPU threads.
+        sampler: :class:`SamplerConfig` overrides.
+        noise: :class:`NoiseConfig` overrides.
+        time_limit: stop (with a checkpoint) after this many seconds of this invocation.
+    """
+
+    poses: str = ""
+    holdout: tuple[str, ...] = ("03",)
+    preset: str = "small"
+    model: dict = field(default_factory=dict)
+    steps: int = 20000
+    batch_size: int = 128
+    lr: float = 1e-4
+    weight_decay: float = 1e-4
+    min_views: int = 1
+    max_views: int = 5
+    single_view_rate: float = 0.1
+    val_every: int = 500
+    val_size: int = 512
+    seed: int = 0
+    threads: int = 2
+    sampler: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)
+    time_limit: float = 0.0
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TrainConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(f"unknown training config keys {sorted(unknown)}; known: {sorted(known)}")
+        d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        cfg = cls(**d)
+        if cfg.preset not in PRESETS:
+            raise ValueError(f"unknown preset {cfg.preset!r}; choose from {sorted(PRESETS)}")
+        cfg.model_config()  # validates overrides
+        SamplerConfig(**cfg.sampler)
+        NoiseConfig.from_dict(cfg.noise)
+        if not 1 <= cfg.min_views <= cfg.max_views:
+            raise ValueError(f"need 1 <= min_views <= max_views, got {cfg.min_views}, {cfg.max_views}")
+        return cfg
+
+    @classmethod
+    def from_toml(cls, path: str | Path, overrides: list[str] | None = None) -> TrainConfig:
+        """Read a TOML file; ``overrides`` are ``key=value`` strings (TOML values)."""
+        with open(path, "rb") as f:
+            d = tomllib.load(f)
+        for item in overrides or []:
+            if "=" not in item:
+                raise ValueError(f"override must be key=value, got {item!r}")
+            key, value = item.split("=", 1)
+            parsed = tomllib.loads(f"v = {value}")["v"] if value else ""
+            target = d
+            *parents, leaf = key.split(".")
+            for p in parents:
+                target = target.setdefault(p, {})
+            target[leaf] = parsed
+        return cls.from_dict(d)
+
+    def model_config(self) -> RMPLConfig:
+        base = PRESETS[self.preset]
+        return RMPLConfig.from_dict({**base.to_dict(), **self.model})
+
+
+def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) -> None:
+    """Write ``model.safetensors`` and ``config.json`` into directory ``path``, atomically."""
+    from safetensors.torch import save_file
+
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "format": "rmpl-checkpoint-1",
+        "model": model.config.to_dict(),
+        "skeleton": model.config.skeleton,
+        "joints": list(COCO17.joints),
+        "units": "metres",
+        **(extra or {}),
+    }
+    tensors = {k: v.detach().contiguous() for k, v in model.state_dict().items()}
+    with atomic_path(path / "model.safetensors") as tmp:
+        save_file(tensors, str(tmp))
+    with atomic_path(path / "config.json") as tmp:
+        tmp.write_text(json.dumps(meta, indent=2))
+
+
+def load_checkpoint(path: str | Path) -> tuple[RMPL, dict]:
+    """Load a checkpoint directory written by :func:`save_checkpoint`."""
+    from safetensors.torch import load_file
+
+    path = Path(path)
+    cfg_file, weights = path / "config.json", path / "model.safetensors"
+    for f in (cfg_file, weights):
+        if not f.is_file():
+            raise FileNotFoundError(f"{f}: checkpoint file missing (expected config.json + model.safetensors)")
+    meta = json.loads(cfg_file.read_text())
+    if "model" not in meta:
+        raise ValueError(f"{cfg_file}: field 'model' missing; not an rmpl checkpoint")
+    model = RMPL(RMPLConfig.from_dict(meta["model"]))
+    model.load_state_dict(load_file(str(weights)))
+    return model.eval(), meta
+
+
+def validation_sets(
+    poses: np.ndarray, cfg: TrainConfig, views=(1, 2, 3, 4, 5)
+) -> dict[int, object]:
+    """Fixed validation batches per number of views (seeded, no keypoint removal)."""
+    sampler = replace(SamplerConfig(**cfg.sampler), drop_rate=0.0)
+    src = PairSource(poses, sampler, NoiseConfig.from_dict(cfg.noise), seed=12345)
+    return {v: src.batch(cfg.val_size, v, train=False) for v in views}
+
+
+def _triangulation_mpjpe(batch) -> float:
+    """Confidence-weighted DLT on a validation batch, KP* MPJPE (mm) on triangulable joints."""
+    from rmpl.geometry.rays import pixel_to_normalized
+
+    ok = batch.scores > 0
+    xy = pixel_to_normalized(np.where(ok[..., None], batch.keypoints, 0.0), batch.K[:, :, None], None)
+    P = np.concatenate([batch.R, batch.t[..., None]], -1)
+    X = _dlt(xy, P, np.where(ok, batch.scores, 0.0))
+    e = np.linalg.norm(X - batch.target, axis=-1)[:, list(KP_STAR)]
+    return float(np.nanmean(e) * 1000) if np.isfinite(e).any() else float("nan")
+
+
+@torch.no_grad()
+def evaluate_batches(model: RMPL, sets: dict) -> dict[str, float]:
+    """KP* MPJPE (mm) of the model per number of views, and on triangulable joints."""
+    model.eval()
+    out = {}
+    for v, b in sets.items():
+        pred = model(torch.from_numpy(b.rays), torch.from_numpy(b.scores)).numpy()
+        e = np.linalg.norm(pred - b.target, axis=-1)
+        out[f"mpjpe_{v}v"] = float(e.mean() * 1000)
+        out[f"kpstar_{v}v"] = float(e[:, list(KP_STAR)].mean() * 1000)
+    model.train()
+    return out
+
+
+def _lr_at(step: int, cfg: TrainConfig) -> float:
+    warmup = min(500, cfg.steps // 20)
+    f = min(1.0, (step + 1) / max(warmup, 1))
+    if step >= 0.75 * cfg.steps:
+        f *= 0.01
+    elif step >= 0.5 * cfg.steps:
+        f *= 0.1
+    return cfg.lr * f
+
+
+def train(cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val: np.ndarray) -> Path:
+    """Train (or resume) a model into directory ``out``; returns ``out``."""
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    model = RMPL(cfg.model_config())
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    state_file = out / "state.pt"
+    step, elapsed = 0, 0.0
+    src = PairSource(
+        poses_train, SamplerConfig(**cfg.sampler), NoiseConfig.from_dict(cfg.noise), cfg.seed
+    )
+    if state_file.exists():
+        state = torch.load(state_file, weights_only=False)
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["optimizer"])
+        step, elapsed = state["step"], state.get("elapsed", 0.0)
+        src.rng.bit_generator.state = state["rng"]
+        log.info("resuming %s at step %d", out, step)
+    sets = validation_sets(poses_val, cfg)
+    tri = {f"triangulation_kpstar_{v}v": _triangulation_mpjpe(b) for v, b in sets.items() if v > 1}
+    rng_views = np.random.default_rng(cfg.seed + step)
+    summary = {
+        "train_config": asdict(cfg),
+        "train_poses": int(len(poses_train)),
+        "val_poses": int(len(poses_val)),
+        "parameters": model.num_parameters,
+    }
+    model.train()
+    t_start = time.time()
+    bar = tqdm(total=cfg.steps, initial=step, desc="train", unit="step", dynamic_ncols=True)
+    running = None
+    while step < cfg.steps:
+        if cfg.min_views == 1 and rng_views.random() < cfg.single_view_rate:
+            V = 1
+        else:
+            V = int(rng_views.integers(max(cfg.min_views, 2), cfg.max_views + 1))
+        b = src.batch(cfg.batch_size, V)
+        for g in opt.param_groups:
+            g["lr"] = _lr_at(step, cfg)
+        pred = model(torch.from_numpy(b.rays), torch.from_numpy(b.scores))
+        loss = (pred - torch.from_numpy(b.target)).norm(dim=-1).mean()
+        if not torch.isfinite(loss):
+            raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        opt.step()
+        step += 1
+        running = loss.item() if running is None else 0.98 * running + 0.02 * loss.item()
+        bar.update(1)
+        bar.set_postfix(loss_mm=f"{running * 1000:.1f}", V=V)
+        over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
+        if step % cfg.val_every == 0 or step == cfg.steps or over_time:
+            metrics = evaluate_batches(model, sets)
+            now = elapsed + time.time() - t_start
+            record = {"step": step, "seconds": round(now, 1), "train_loss_mm": running * 1000,
+                      **metrics, **tri}  # fmt: skip
+            with open(out / "log.jsonl", "a") as f:
+                f.write(json.dumps(record) + "\n")
+            bar.write(
+                f"step {step}: " + " ".join(f"{k}={v:.1f}" for k, v in metrics.items() if "kpstar" in k)
+            )
+            save_checkpoint(model, out, {"training": {**summary, "last": record}})
+            with atomic_path(state_file) as tmp:
+                torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(),
+                            "step": step, "elapsed": now, "rng": src.rng.bit_generator.state}, tmp)  # fmt: skip
+            if over_time:
+                log.info("time limit reached at step %d; run again to resume", step)
+                break
+    bar.close()
+    if math.isfinite(running or 0):
+        log.info("done: %s", out)
+    return out
