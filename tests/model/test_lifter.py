@@ -1,0 +1,113 @@
+import numpy as np
+import pytest
+import torch
+
+from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, anchors_from_rays
+from rmpl.train import load_checkpoint, save_checkpoint
+
+
+def scene(B=4, V=4, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    X = torch.rand(B, 17, 3, generator=g) * torch.tensor([0.6, 0.6, 1.7])
+    ang = torch.rand(B, V, generator=g) * 6.28
+    C = torch.stack([4 * ang.cos(), 4 * ang.sin(), 1 + torch.rand(B, V, generator=g)], -1)
+    d = X[:, None] - C[:, :, None]
+    d = d / d.norm(dim=-1, keepdim=True)
+    rays = torch.cat([C[:, :, None].expand_as(d), d], -1)
+    scores = 0.5 + 0.5 * torch.rand(B, V, 17, generator=g)
+    return rays, scores, X
+
+
+def tiny(**kw):
+    torch.manual_seed(0)
+    return RMPL(PRESETS["tiny"].with_(**kw)).eval()
+
+
+@pytest.mark.parametrize("V", range(1, 11))
+def test_shapes_any_number_of_views(V):
+    rays, scores, _ = scene(2, V)
+    out = tiny()(rays, scores)
+    assert out.shape == (2, 17, 3)
+    assert torch.isfinite(out).all()
+
+
+def test_masked_view_changes_nothing():
+    model = tiny(geometric=True)
+    # Randomise the zero-initialised head so the test sees the network, not the anchor.
+    torch.nn.init.normal_(model.head.weight, std=0.1)
+    rays, scores, _ = scene(3, 3)
+    ref = model(rays, scores)
+    garbage = torch.cat([rays, torch.randn(3, 1, 17, 6) * 10], 1)
+    more = model(garbage, torch.cat([scores, torch.zeros(3, 1, 17)], 1))
+    assert torch.allclose(ref, more, atol=1e-5)
+    nan_rays = garbage.clone()
+    nan_rays[:, -1] = float("nan")
+    assert torch.allclose(ref, model(nan_rays, torch.cat([scores, torch.ones(3, 1, 17)], 1)), atol=1e-5)
+
+
+@pytest.mark.parametrize("geometric", [True, False])
+def test_permutation_invariance(geometric):
+    model = tiny(geometric=geometric)
+    torch.nn.init.normal_(model.head.weight, std=0.1)
+    rays, scores, _ = scene(2, 5)
+    perm = torch.tensor([3, 0, 4, 1, 2])
+    assert torch.allclose(model(rays, scores), model(rays[:, perm], scores[:, perm]), atol=1e-5)
+
+
+def test_geometric_model_starts_at_triangulation():
+    rays, scores, X = scene(4, 4)
+    out = tiny(geometric=True)(rays, scores)
+    assert (out - X).norm(dim=-1).max() < 1e-4
+
+
+def test_anchor_single_view_is_in_front_of_camera():
+    rays, scores, X = scene(2, 1)
+    pts, valid, P = anchors_from_rays(rays, scores)
+    assert not valid.any()
+    C = rays[:, 0, 0, :3]
+    dist = (P - C).norm(dim=-1)
+    true = (X.mean(1) - C).norm(dim=-1)
+    assert ((dist / true) > 0.3).all() and ((dist / true) < 3).all()
+
+
+def test_overfit_one_batch():
+    torch.manual_seed(0)
+    model = RMPL(PRESETS["tiny"].with_(geometric=False)).train()
+    rays, scores, X = scene(8, 3)
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    first = None
+    for _ in range(300):
+        loss = (model(rays, scores) - X).norm(dim=-1).mean()
+        first = first or loss.item()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert loss.item() < 0.2 * first
+
+
+def test_wrong_joint_count_is_clear():
+    with pytest.raises(ValueError, match="17 joints"):
+        tiny()(torch.zeros(1, 2, 15, 6), torch.ones(1, 2, 15))
+
+
+def test_checkpoint_round_trip(tmp_path):
+    model = tiny()
+    torch.nn.init.normal_(model.head.weight, std=0.1)
+    save_checkpoint(model, tmp_path / "ck", {"note": "x"})
+    loaded, meta = load_checkpoint(tmp_path / "ck")
+    assert meta["note"] == "x" and meta["skeleton"] == "coco17"
+    rays, scores, _ = scene(2, 3)
+    assert torch.equal(model(rays, scores), loaded(rays, scores))
+    assert not list((tmp_path / "ck").glob("*.part*"))
+
+
+def test_config_rejects_unknown_keys():
+    with pytest.raises(ValueError, match="unknown RMPLConfig keys"):
+        RMPLConfig.from_dict({"dim": 64, "width": 3})
+
+
+def test_paper_preset_size():
+    n = RMPL(PRESETS["paper"]).num_parameters
+    assert 12.0e6 < n < 13.5e6  # the thesis reports 12.7M
+    del n
+    np.testing.assert_equal(PRESETS["paper"].dim, 256)
