@@ -61,7 +61,7 @@ class SamplerConfig:
 
     camera_preset: str = "universal"
     room: float = 2.0
-    scale_range: tuple[float, float] = (0.85, 1.12)
+    scale_range: tuple[float, float] = (0.88, 1.22)
     mirror: float = 0.5
     drop_rate: float = 0.2
     calib_noise_deg: float = 0.0

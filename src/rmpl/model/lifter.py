@@ -33,7 +33,7 @@ __all__ = ["RMPLConfig", "RMPL", "PRESETS", "anchors_from_rays"]
 
 ORIGIN_SCALE = 4.0  # metres: camera offsets are divided by this
 PERP_SCALE = 0.25  # metres: ray-to-anchor offsets are divided by this
-BODY_SPREAD = 0.42  # metres: RMS distance of COCO joints from their centroid, standing adult
+BODY_SPREAD = 0.46  # metres: RMS distance of COCO joints from their centroid across the view, adult
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,476 @@
+"""3D poses out (NPZ, JSON, OpenSim TRC, C3D) and back in (NPZ, JSON, TRC).
+
+A :class:`Poses3D` holds world points in metres, shape (T, P, J, 3), NaN where a joint is
+missing, with optional per-joint scores, source flags (:class:`JointSource`) and view counts.
+
+File formats, chosen from the extension by :func:`save_poses`:
+
+``.npz``, ``.json``
+    Everything in the dataclass, in metres. The JSON names its ``units`` and the skeleton's
+    ``joints``, writes ``null`` for a missing coordinate, and lists the flag values.
+``.trc``
+    OpenSim marker trajectories: tab-separated, the header lines ``PathFileType 4 (X/Y/Z)
+    <file name>``, ``DataRate CameraRate NumFrames NumMarkers Units OrigDataRate
+    OrigDataStartFrame OrigNumFrames`` and their values, the row ``Frame# Time <marker>...``
+    (each marker name over its three columns), the row ``X1 Y1 Z1 X2 ...``, a blank line,
+    then one row per frame. ``Frame#`` is the rmpl frame number + 1 (TRC counts from 1) and
+    ``Time`` is frame / fps. A missing marker is three empty fields, which OpenSim reads as
+    NaN; every field of a data row is followed by a tab, as OpenSim itself writes, so that a
+    row whose last marker is missing still has all its fields. Markers are the skeleton's
+    joint names; with more than one person each gets a suffix ``_p<person id>``. Units are
+    ``m`` (default) or ``mm``. Scores, flags and view counts are not stored.
+``.c3d``
+    Through the ``c3d`` package: float points in ``m`` or ``mm`` (``POINT:UNITS``), labels as
+    in TRC, residual -1 for a missing point and 0 otherwise (0 means "computed, not
+    measured" in C3D). C3D frames are contiguous and count from 1: the file spans frames
+    ``frames[0] + 1`` to ``frames[-1] + 1``, frames in between that are not in the poses are
+    written missing.
+
+``up_axis``: rmpl writes world coordinates as they are (``None``, the default). OpenSim
+expects +Y up; when the world is Z-up (Shelf, Pose2Sim's Qualisys calibrations)
+``up_axis="y"`` rotates it by -90 degrees about X for TRC and C3D: ``(x, y, z) -> (x, z,
+-y)``. Pass the same ``up_axis`` to :func:`load_poses` to rotate a TRC back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import warnings
+from dataclasses import dataclass
+from enum import IntEnum
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.errors import InputError
+from rmpl.io.atomic import atomic_path
+from rmpl.io.keypoints import (
+    _check_fps,
+    _check_frames,
+    _check_missing,
+    _check_skeleton,
+    _floats,
+    _fps_from_npz,
+    _json_array,
+    _json_floats,
+    _npz_fps,
+    _npz_get,
+    _npz_str,
+    _open_npz,
+    _read_json,
+    _with_path,
+)
+from rmpl.skeleton import SKELETONS
+
+__all__ = ["JointSource", "POSE_FORMATS", "Poses3D", "load_poses", "save_poses"]
+
+POSE_FORMATS = ("npz", "json", "trc", "c3d")
+_TAG = "rmpl.poses3d"
+_UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}  # metres per unit
+_TRC_KEYS = (
+    "DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
+    "OrigDataStartFrame", "OrigNumFrames",
+)  # fmt: skip
+# Z-up world -> Y-up file: rotation by -90 degrees about X, (x, y, z) -> (x, z, -y).
+_Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+class JointSource(IntEnum):
+    """Where a 3D joint came from, stored per joint in :attr:`Poses3D.flags` (uint8)."""
+
+    MISSING = 0  #: no estimate; the point is NaN
+    LIFTED = 1  #: predicted by the lifter
+    TRIANGULATED = 2  #: triangulated from the 2D keypoints
+    INTERPOLATED = 3  #: filled in from neighbouring frames
+
+
+@dataclass
+class Poses3D:
+    """3D poses of every frame and person.
+
+    Attributes:
+        points: world coordinates in metres, shape (T, P, J, 3); NaN = missing.
+        scores: per-joint confidence, shape (T, P, J), finite and >= 0; or None.
+        flags: :class:`JointSource` per joint, shape (T, P, J), uint8; MISSING exactly where
+            the point is NaN; or None.
+        num_views: number of views that saw each joint, shape (T, P, J); or None.
+        skeleton: joint set, a key of :data:`rmpl.skeleton.SKELETONS`.
+        frames: frame numbers, shape (T,), strictly increasing (default 0..T-1).
+        fps: frames per second, or None (then TRC and C3D cannot be written).
+        person_ids: identity of each person, shape (P,), distinct (default 0..P-1).
+    """
+
+    points: np.ndarray
+    scores: np.ndarray | None = None
+    flags: np.ndarray | None = None
+    num_views: np.ndarray | None = None
+    skeleton: str = "coco17"
+    frames: np.ndarray | None = None
+    fps: float | None = None
+    person_ids: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        pts = _floats(self.points, "points")
+        if pts.ndim != 4 or pts.shape[-1] != 3:
+            raise InputError(None, "points", "shape (T, P, J, 3)", pts.shape)
+        T, P, J, _ = pts.shape
+        _check_skeleton(self.skeleton, J)
+        scores = None if self.scores is None else _per_joint(self.scores, pts, "scores")
+        _check_missing(pts, None, "points", "scores")
+        if scores is not None and not (np.isfinite(scores).all() and (scores >= 0).all()):
+            raise InputError(None, "scores", "finite scores >= 0", "NaN, inf or negative")
+        self.points, self.scores = pts, scores
+        self.flags = _check_flags(self.flags, pts)
+        self.num_views = _check_counts(self.num_views, pts)
+        self.frames = _check_frames(self.frames, T)
+        self.fps = _check_fps(self.fps)
+        self.person_ids = _check_ids(self.person_ids, P)
+
+    @property
+    def num_frames(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def num_people(self) -> int:
+        return self.points.shape[1]
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        return SKELETONS[self.skeleton].joints
+
+
+def _per_joint(x, pts: np.ndarray, field: str) -> np.ndarray:
+    a = _floats(x, field)
+    if a.shape != pts.shape[:-1]:
+        raise InputError(None, field, f"shape {pts.shape[:-1]} (T, P, J)", a.shape)
+    return a
+
+
+def _integers(x, pts: np.ndarray, field: str) -> np.ndarray:
+    a = _per_joint(x, pts, field)
+    if not (np.isfinite(a).all() and (a == np.round(a)).all() and (a >= 0).all()):
+        raise InputError(None, field, "integers >= 0", "other values")
+    return a
+
+
+def _check_flags(flags, pts: np.ndarray) -> np.ndarray | None:
+    if flags is None:
+        return None
+    a = _integers(flags, pts, "flags")
+    if (a > max(JointSource)).any():
+        raise InputError(None, "flags", f"JointSource values 0..{int(max(JointSource))}", a.max())
+    if ((a == JointSource.MISSING) != np.isnan(pts).any(-1)).any():
+        raise InputError(None, "flags", "MISSING (0) exactly where the point is NaN", "other")
+    return a.astype(np.uint8)
+
+
+def _check_counts(counts, pts: np.ndarray) -> np.ndarray | None:
+    return None if counts is None else _integers(counts, pts, "num_views").astype(np.int32)
+
+
+def _check_ids(ids, num_people: int) -> np.ndarray:
+    if ids is None:
+        return np.arange(num_people, dtype=np.int64)
+    a = _floats(ids, "person_ids")
+    if a.shape != (num_people,) or not (np.isfinite(a).all() and (a == np.round(a)).all()):
+        raise InputError(None, "person_ids", f"{num_people} integers", a.tolist())
+    if len(set(a.tolist())) != num_people:
+        raise InputError(None, "person_ids", "distinct ids", a.tolist())
+    return a.astype(np.int64)
+
+
+# --------------------------------------------------------------------------- public API
+
+
+def save_poses(
+    poses: Poses3D,
+    path: str | Path,
+    format: str | None = None,
+    *,
+    units: str = "m",
+    up_axis: str | None = None,
+) -> Path:
+    """Write poses atomically (nothing is left behind on failure).
+
+    Args:
+        poses: what to write.
+        path: output file.
+        format: ``"npz"``, ``"json"``, ``"trc"`` or ``"c3d"``; from the extension when None.
+        units: ``"m"`` or ``"mm"`` for TRC and C3D (NPZ and JSON are always metres).
+        up_axis: None writes world axes unchanged; ``"y"`` turns a Z-up world Y-up for
+            OpenSim (TRC and C3D only), see the module docstring.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    fmt = _format_of(path, format)
+    if units not in ("m", "mm") or (units != "m" and fmt in ("npz", "json")):
+        raise InputError(path, "units", "'m' or 'mm' (TRC/C3D; NPZ/JSON are metres)", units)
+    if up_axis not in (None, "z", "y") or (up_axis == "y" and fmt in ("npz", "json")):
+        raise InputError(path, "up_axis", "None, 'z' or 'y' (TRC/C3D only)", up_axis)
+    try:
+        poses = dataclasses.replace(poses)  # validate again: fields may have changed since
+    except InputError as e:
+        raise _with_path(e, path) from None
+    if fmt in ("trc", "c3d"):
+        _check_trajectories(poses, path)
+    if fmt == "c3d" and poses.frames[0] < 0:
+        raise InputError(path, "frames", "frame numbers >= 0 for C3D", int(poses.frames[0]))
+    with atomic_path(path) as tmp:
+        if fmt == "npz":
+            _write_npz(poses, tmp)
+        elif fmt == "json":
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(_json_doc(poses), f, allow_nan=False)
+        elif fmt == "trc":
+            tmp.write_text(_trc_text(poses, path.name, units, up_axis), encoding="utf-8")
+        else:
+            _write_c3d(poses, tmp, units, up_axis)
+    return path
+
+
+def load_poses(
+    path: str | Path, format: str | None = None, *, up_axis: str | None = None
+) -> Poses3D:
+    """Read poses written by :func:`save_poses` (NPZ, JSON or TRC).
+
+    Args:
+        path: the file.
+        format: ``"npz"``, ``"json"`` or ``"trc"``; from the extension when None.
+        up_axis: ``"y"`` when the TRC was written with ``up_axis="y"``: rotates it back to a
+            Z-up world.
+
+    Returns:
+        A :class:`Poses3D` in metres. A TRC gives no scores, flags or view counts; its
+        markers must be one of rmpl's skeletons, per person (suffix ``_p<id>``) when several.
+
+    Raises:
+        InputError: a missing or malformed file, naming the file and the field.
+    """
+    path = Path(path)
+    fmt = _format_of(path, format)
+    if fmt == "c3d":
+        raise InputError(path, None, "an .npz, .json or .trc file (C3D is write-only)", "c3d")
+    if up_axis not in (None, "z", "y") or (up_axis == "y" and fmt != "trc"):
+        raise InputError(path, "up_axis", "None, 'z' or 'y' (TRC only)", up_axis)
+    if not path.is_file():
+        raise InputError(path, None, "an existing file", "no such file")
+    fields = {"npz": _npz_fields, "json": _json_fields, "trc": _trc_fields}[fmt](path)
+    if up_axis == "y":
+        fields["points"] = fields["points"] @ _Z_UP_TO_Y_UP  # row vectors: R^T undoes R
+    try:
+        return Poses3D(**fields)
+    except InputError as e:
+        raise _with_path(e, path) from None
+
+
+def _format_of(path: Path, format: str | None) -> str:
+    fmt = format or path.suffix.lower().lstrip(".")
+    if fmt not in POSE_FORMATS:
+        raise InputError(path, "format", f"one of {POSE_FORMATS} (or that extension)", fmt)
+    return fmt
+
+
+def _check_trajectories(poses: Poses3D, path: Path) -> None:
+    if poses.fps is None:
+        raise InputError(path, "fps", "a frame rate in Poses3D.fps for TRC and C3D files")
+    if poses.points.shape[0] == 0 or poses.points.shape[1] == 0:
+        raise InputError(path, "points", "at least one frame and one person", poses.points.shape)
+
+
+def _marker_names(poses: Poses3D) -> list[str]:
+    joints = poses.joint_names
+    if poses.num_people == 1:
+        return list(joints)
+    return [f"{j}_p{pid}" for pid in poses.person_ids.tolist() for j in joints]
+
+
+def _file_points(poses: Poses3D, units: str, up_axis: str | None) -> np.ndarray:
+    """World metres -> file units and axes, shape (T, P * J, 3)."""
+    pts = poses.points @ _Z_UP_TO_Y_UP.T if up_axis == "y" else poses.points
+    return pts.reshape(pts.shape[0], -1, 3) / _UNITS[units]
+
+
+# --------------------------------------------------------------------------- npz / json
+
+
+def _write_npz(poses: Poses3D, tmp: Path) -> None:
+    optional = {k: getattr(poses, k) for k in ("scores", "flags", "num_views")}
+    with open(tmp, "wb") as f:
+        np.savez_compressed(
+            f, format=np.array(_TAG), units=np.array("m"), points=poses.points,
+            skeleton=np.array(poses.skeleton), frames=poses.frames, fps=_npz_fps(poses.fps),
+            person_ids=poses.person_ids, **{k: v for k, v in optional.items() if v is not None},
+        )  # fmt: skip
+
+
+def _npz_fields(path: Path) -> dict:
+    data = _open_npz(path)
+    units = _npz_str(data, "units", path)
+    if units not in _UNITS:
+        raise InputError(path, "units", f"one of {sorted(_UNITS)}", units)
+    return dict(
+        points=_npz_get(data, "points", path) * _UNITS[units],
+        scores=data.get("scores"), flags=data.get("flags"), num_views=data.get("num_views"),
+        skeleton=_npz_str(data, "skeleton", path), frames=_npz_get(data, "frames", path),
+        fps=_fps_from_npz(_npz_get(data, "fps", path), path),
+        person_ids=_npz_get(data, "person_ids", path),
+    )  # fmt: skip
+
+
+def _json_doc(poses: Poses3D) -> dict:
+    def opt(a):
+        return None if a is None else a.tolist()
+
+    return {
+        "format": _TAG, "version": 1, "units": "m", "skeleton": poses.skeleton,
+        "joints": list(poses.joint_names), "fps": poses.fps, "frames": poses.frames.tolist(),
+        "person_ids": poses.person_ids.tolist(), "points": _json_floats(poses.points),
+        "scores": opt(poses.scores), "flags": opt(poses.flags),
+        "flag_values": {s.name.lower(): int(s) for s in JointSource},
+        "num_views": opt(poses.num_views),
+    }  # fmt: skip
+
+
+def _json_fields(path: Path) -> dict:
+    doc = _read_json(path)
+    if not isinstance(doc, dict):
+        raise InputError(path, None, "a JSON object (rmpl poses)", type(doc).__name__)
+    for key in ("units", "skeleton", "frames", "person_ids", "points"):
+        if key not in doc:
+            raise InputError(path, key, "a value (rmpl poses JSON)", "no such key")
+    if doc["units"] not in _UNITS:
+        raise InputError(path, "units", f"one of {sorted(_UNITS)}", doc["units"])
+    if doc["skeleton"] not in SKELETONS:
+        raise InputError(path, "skeleton", f"one of {sorted(SKELETONS)}", doc["skeleton"])
+    for key in ("frames", "person_ids"):
+        if not isinstance(doc[key], list):
+            raise InputError(path, key, "a list", type(doc[key]).__name__)
+    shape = (len(doc["frames"]), len(doc["person_ids"]), SKELETONS[doc["skeleton"]].num_joints)
+
+    def opt(key):
+        return None if doc.get(key) is None else _json_array(doc, key, shape, path)
+
+    return dict(
+        points=_json_array(doc, "points", (*shape, 3), path) * _UNITS[doc["units"]],
+        scores=opt("scores"), flags=opt("flags"), num_views=opt("num_views"),
+        skeleton=doc["skeleton"], frames=doc["frames"], fps=doc.get("fps"),
+        person_ids=doc["person_ids"],
+    )  # fmt: skip
+
+
+# --------------------------------------------------------------------------- TRC
+
+
+def _trc_text(poses: Poses3D, name: str, units: str, up_axis: str | None) -> str:
+    pts = _file_points(poses, units, up_axis)  # (T, M, 3)
+    T, M, _ = pts.shape
+    markers = _marker_names(poses)
+    rate = f"{poses.fps:.12g}"
+    header = [
+        f"PathFileType\t4\t(X/Y/Z)\t{name}",
+        "\t".join(_TRC_KEYS),
+        "\t".join([rate, rate, str(T), str(M), units, rate, str(poses.frames[0] + 1), str(T)]),
+        "\t".join(["Frame#", "Time", *(f"{m}\t\t" for m in markers)]),
+        "\t\t" + "\t".join(f"X{i}\tY{i}\tZ{i}" for i in range(1, M + 1)),
+        "",
+    ]
+    decimals = 6 if units == "m" else 3  # micrometres either way
+    text = np.char.mod(f"%.{decimals}f", pts.reshape(T, 3 * M))
+    text[np.isnan(pts.reshape(T, 3 * M))] = ""
+    time = np.char.mod("%.6f", poses.frames / poses.fps)
+    rows = [
+        f"{f + 1}\t{t}\t" + "".join(v + "\t" for v in row)
+        for f, t, row in zip(poses.frames.tolist(), time, text.tolist(), strict=True)
+    ]
+    return "\n".join(header + rows) + "\n"
+
+
+def _trc_fields(path: Path) -> dict:
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(path, None, "a readable text TRC file", e) from None
+    if len(lines) < 5 or not lines[0].startswith("PathFileType"):
+        raise InputError(path, "PathFileType", "a TRC header starting 'PathFileType'",
+                         lines[0][:40] if lines else "an empty file")  # fmt: skip
+    keys = [k for k in lines[1].split() if k]
+    if tuple(keys) != _TRC_KEYS:
+        raise InputError(path, "line 2", " ".join(_TRC_KEYS), " ".join(keys))
+    values = dict(zip(_TRC_KEYS, lines[2].split(), strict=False))
+    try:
+        rate, T, M = float(values["DataRate"]), int(values["NumFrames"]), int(values["NumMarkers"])
+    except (KeyError, ValueError):
+        raise InputError(path, "line 3", "DataRate, NumFrames and NumMarkers numbers",
+                         lines[2]) from None  # fmt: skip
+    units = values.get("Units")
+    if units not in _UNITS:
+        raise InputError(path, "Units", f"one of {sorted(_UNITS)}", units)
+    labels = [x.strip() for x in lines[3].split("\t") if x.strip()]
+    if labels[:2] != ["Frame#", "Time"] or len(labels) != M + 2:
+        raise InputError(path, "line 4", f"Frame#, Time and {M} marker names", len(labels))
+    rows = [ln for ln in lines[5:] if ln.strip()]
+    if len(rows) != T:
+        raise InputError(path, "NumFrames", f"{T} data rows as the header says", len(rows))
+    data = np.full((T, 2 + 3 * M), np.nan)
+    for i, row in enumerate(rows):
+        fields = [x.strip() for x in row.split("\t")]
+        if len(fields) == 3 * M + 3 and fields[-1] == "":
+            fields.pop()  # the tab after the last field
+        if len(fields) != 3 * M + 2:
+            raise InputError(path, f"data row {i + 1}", f"{3 * M + 2} tab-separated fields",
+                             len(fields))  # fmt: skip
+        try:
+            data[i] = [float(x) if x else np.nan for x in fields]
+        except ValueError:
+            raise InputError(path, f"data row {i + 1}", "numbers or empty fields", row) from None
+    skeleton, ids = _people_from_markers(labels[2:], path)
+    points = data[:, 2:].reshape(T, len(ids), -1, 3) * _UNITS[units]
+    frames = data[:, 0] - 1
+    return dict(points=points, skeleton=skeleton, frames=frames, fps=rate, person_ids=ids)
+
+
+def _people_from_markers(markers: list[str], path: Path) -> tuple[str, list[int]]:
+    """Marker names -> skeleton name and person ids (``joint`` or ``joint_p<id>``)."""
+    by_joints = {s.joints: s.name for s in SKELETONS.values()}
+    if tuple(markers) in by_joints:
+        return by_joints[tuple(markers)], [0]
+    for joints, name in by_joints.items():
+        J = len(joints)
+        if len(markers) % J:
+            continue
+        ids = [m.rpartition("_p")[2] for m in markers[::J]]
+        if not all(i.isdigit() for i in ids):
+            continue
+        want = [f"{j}_p{i}" for i in ids for j in joints]
+        if markers == want:
+            return name, [int(i) for i in ids]
+    raise InputError(path, "marker names", "the joints of an rmpl skeleton, per person "
+                     "with the suffix _p<id>", markers[:4])  # fmt: skip
+
+
+# --------------------------------------------------------------------------- C3D
+
+
+def _write_c3d(poses: Poses3D, tmp: Path, units: str, up_axis: str | None) -> None:
+    import c3d
+
+    pts = _file_points(poses, units, up_axis).astype(np.float32)  # (T, M, 3)
+    first, last = int(poses.frames[0]), int(poses.frames[-1])
+    block = np.zeros((last - first + 1, pts.shape[1], 5), np.float32)
+    block[..., 3] = -1.0  # residual -1: no point
+    rows = poses.frames - first
+    ok = ~np.isnan(pts).any(-1)
+    block[rows, :, :3] = np.where(ok[..., None], pts, 0.0)
+    block[rows, :, 3] = np.where(ok, 0.0, -1.0)
+    writer = c3d.Writer(point_rate=poses.fps, analog_rate=0.0, point_units=units)
+    writer.set_point_labels(_marker_names(poses))
+    writer.set_start_frame(first + 1)
+    no_analog = np.zeros((0, 0), np.float32)
+    writer.add_frames([(frame, no_analog) for frame in block])
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "No analog data", UserWarning)
+        with open(tmp, "wb") as f:
+            writer.write(f)
