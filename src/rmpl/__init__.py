@@ -19,6 +19,12 @@ from rmpl.geometry import (
     triangulate_robust,
     undistort_points,
 )
+from rmpl.inference import Lifter, LiftResult
+from rmpl.io.calibration import load_rig, save_rig
+from rmpl.io.keypoints import Keypoints2D, load_keypoints
+from rmpl.io.poses import Poses3D, load_poses, save_poses
+from rmpl.metrics import mpjpe, pa_mpjpe, pck, pcp
+from rmpl.model import RMPL, RMPLConfig
 from rmpl.skeleton import COCO17, H36M17, SHELF14, SKELETONS, Skeleton
 
 __version__ = "0.1.0"
@@ -28,13 +34,28 @@ __all__ = [
     "H36M17",
     "SHELF14",
     "SKELETONS",
+    "RMPL",
     "Camera",
+    "Keypoints2D",
+    "LiftResult",
+    "Lifter",
+    "Poses3D",
+    "RMPLConfig",
     "Rig",
     "Skeleton",
     "TriangulationResult",
     "__version__",
+    "load_keypoints",
+    "load_poses",
+    "load_rig",
+    "mpjpe",
+    "pa_mpjpe",
+    "pck",
+    "pcp",
     "project",
     "rays_from_keypoints",
+    "save_poses",
+    "save_rig",
     "recenter_point",
     "triangulate",
     "triangulate_robust",
