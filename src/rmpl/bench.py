@@ -7,19 +7,18 @@ Every figure is frames per second, where a frame is one person seen by V views
 from __future__ import annotations
 
 import resource
-import tempfile
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 import torch
 
 from rmpl.geometry.camera import Camera, Rig, look_at
 from rmpl.geometry.triangulate import triangulate, triangulate_robust
+from rmpl.model.export import OnnxLifter
 from rmpl.model.lifter import PRESETS, RMPL
 
-__all__ = ["export_onnx", "OnnxLifter", "run_bench", "synthetic_inputs"]
+__all__ = ["run_bench", "synthetic_inputs", "markdown", "long_sequence_memory"]
 
 
 def synthetic_inputs(batch: int, views: int, seed: int = 0):
@@ -40,36 +39,6 @@ def synthetic_inputs(batch: int, views: int, seed: int = 0):
 
     rays = rays_from_keypoints(kp, rig).astype(np.float32)
     return rays, scores.astype(np.float32), kp, rig
-
-
-def export_onnx(model: RMPL, path: str | Path) -> Path:
-    """Export the model to ONNX with dynamic batch and view axes."""
-    model = model.eval()
-    rays = torch.randn(2, 3, model.config.num_joints, 6)
-    rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
-    scores = torch.rand(2, 3, model.config.num_joints)
-    torch.onnx.export(
-        model, (rays, scores), str(path), input_names=["rays", "scores"], output_names=["joints"],
-        dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}, "joints": {0: "B"}},
-        opset_version=17, dynamo=False,
-    )  # fmt: skip
-    return Path(path)
-
-
-class OnnxLifter:
-    """The same network run by onnxruntime: ``__call__(rays, scores) -> joints`` (numpy)."""
-
-    def __init__(self, model: RMPL, threads: int = 2) -> None:
-        import onnxruntime as ort
-
-        with tempfile.TemporaryDirectory() as d:
-            path = export_onnx(model, Path(d) / "rmpl.onnx")
-            opts = ort.SessionOptions()
-            opts.intra_op_num_threads = threads
-            self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-
-    def __call__(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
-        return self.session.run(None, {"rays": rays, "scores": scores})[0]
 
 
 def _rate(fn: Callable[[], object], frames: int, min_time: float = 0.5) -> float:
@@ -131,3 +100,34 @@ def run_bench(
 def peak_memory_mb() -> float:
     """Peak resident memory of this process so far, MB."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def markdown(rows: list[dict]) -> str:
+    """One table per (method, backend): rows = views, columns = batch sizes (frames/s)."""
+    out = []
+    keys = sorted({(r["method"], r["backend"]) for r in rows}, key=lambda k: (k[0], k[1]))
+    batches = sorted({r["batch"] for r in rows})
+    for method, backend in keys:
+        sel = [r for r in rows if r["method"] == method and r["backend"] == backend]
+        out.append(f"**{method}** ({backend}), frames/s\n")
+        out.append("| views | " + " | ".join(f"batch {b}" for b in batches) + " |")
+        out.append("|---:|" + "---:|" * len(batches))
+        for v in sorted({r["views"] for r in sel}):
+            cells = {r["batch"]: r["fps"] for r in sel if r["views"] == v}
+            out.append(f"| {v} | " + " | ".join(f"{cells[b]:.0f}" if b in cells else "—" for b in batches) + " |")
+        out.append("")
+    return "\n".join(out)
+
+
+def long_sequence_memory(frames: int, views: int = 4) -> tuple[float, float]:
+    """Lift a long random sequence with the default model; returns (peak MB, seconds)."""
+    from rmpl.inference import Lifter, PRETRAINED
+
+    rays, scores, kp, rig = synthetic_inputs(frames, views)
+    if (PRETRAINED["default"] / "config.json").is_file():
+        lifter = Lifter.from_pretrained()
+    else:
+        lifter = Lifter(RMPL(PRESETS["small"]))
+    start = time.perf_counter()
+    lifter.lift(kp, scores, rig)
+    return peak_memory_mb(), time.perf_counter() - start

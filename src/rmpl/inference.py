@@ -96,13 +96,37 @@ class Lifter:
         meta: the checkpoint's description (config, skeleton, training summary).
     """
 
-    def __init__(self, model: RMPL, meta: dict | None = None) -> None:
+    def __init__(self, model: RMPL, meta: dict | None = None, backend: str = "auto") -> None:
         self.model = model.eval()
         self.meta = meta or {}
+        if backend not in ("auto", "torch", "onnx"):
+            raise ValueError(f"backend must be 'auto', 'torch' or 'onnx', got {backend!r}")
+        self._onnx = None
+        if backend in ("auto", "onnx"):
+            try:
+                from rmpl.model.export import OnnxLifter
+
+                self._onnx = OnnxLifter(self.model)
+            except ImportError:
+                if backend == "onnx":
+                    raise ImportError("backend='onnx' needs onnxruntime: pip install 'rmpl[fast]'") from None
+                log.debug("onnxruntime not installed; lifting with torch")
+
+    @property
+    def backend(self) -> str:
+        return "onnx" if self._onnx is not None else "torch"
+
+    def _forward(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
+        if self._onnx is not None:
+            return self._onnx(rays, scores)
+        return self.model(torch.from_numpy(rays), torch.from_numpy(scores)).numpy()
 
     @classmethod
-    def from_pretrained(cls, name_or_path: str | Path = "default") -> Lifter:
-        """Load a shipped model by name (see :data:`PRETRAINED`) or a checkpoint directory."""
+    def from_pretrained(cls, name_or_path: str | Path = "default", backend: str = "auto") -> Lifter:
+        """Load a shipped model by name (see :data:`PRETRAINED`) or a checkpoint directory.
+
+        ``backend``: "onnx" (onnxruntime, fastest on CPU), "torch", or "auto" (onnx when
+        onnxruntime is installed)."""
         from rmpl.train import load_checkpoint
 
         path = PRETRAINED.get(str(name_or_path), Path(name_or_path))
@@ -110,7 +134,7 @@ class Lifter:
             names = ", ".join(sorted(PRETRAINED))
             raise InputError(path, None, f"a checkpoint directory or a shipped model ({names})")
         model, meta = load_checkpoint(path)
-        return cls(model, meta)
+        return cls(model, meta, backend)
 
     @property
     def num_joints(self) -> int:
@@ -173,7 +197,7 @@ class Lifter:
             starts = tqdm(starts, desc="lift", unit="batch")
         for i in starts:
             sl = slice(i, i + batch_size)
-            out[sl] = self.model(torch.from_numpy(rays[sl]), torch.from_numpy(s[sl])).numpy()
+            out[sl] = self._forward(rays[sl], s[sl])
         points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
         empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
         points[empty] = np.nan

@@ -1,0 +1,52 @@
+"""Measure frames/s of the lifter presets and of triangulation, and peak memory.
+
+A frame is one person seen by V views. Example: rmpl bench --views 1,2,4,8 --out bench.md
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from rmpl.io.atomic import atomic_path
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--presets", default="default,paper", help="comma-separated: default, paper, small, tiny")
+    parser.add_argument("--views", default="1,2,3,4,5,6,7,8")
+    parser.add_argument("--batches", default="1,8,64,512")
+    parser.add_argument("--backends", default="torch,onnx", help="torch and/or onnx (needs rmpl[fast])")
+    parser.add_argument("--seconds", type=float, default=0.5, help="minimum timing per cell")
+    parser.add_argument("--long", type=int, default=10000, help="frames of the memory test sequence (0 = skip)")
+    parser.add_argument("--out", default=None, help="write the Markdown tables here")
+    parser.set_defaults(run=run)
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise ValueError(f"expected comma-separated integers, got {text!r}") from None
+
+
+def run(args: argparse.Namespace) -> int:
+    from rmpl.bench import long_sequence_memory, markdown, peak_memory_mb, run_bench
+
+    rows = run_bench(
+        presets=tuple(p.strip() for p in args.presets.split(",")),
+        views=_ints(args.views),
+        batches=_ints(args.batches),
+        backends=tuple(b.strip() for b in args.backends.split(",")),
+        min_time=args.seconds,
+    )
+    text = markdown(rows)
+    if args.long:
+        mb, seconds = long_sequence_memory(args.long)
+        text += (f"\nLifting a {args.long}-frame, 4-view sequence with `Lifter.lift`: "
+                 f"{seconds:.1f} s, peak resident memory {mb:.0f} MB.\n")  # fmt: skip
+    text += f"\nPeak resident memory of the whole benchmark process: {peak_memory_mb():.0f} MB.\n"
+    print(text)
+    if args.out:
+        with atomic_path(Path(args.out)) as tmp:
+            tmp.write_text(text)
+    return 0

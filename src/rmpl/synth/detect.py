@@ -1,0 +1,147 @@
+"""2D keypoint detectors run on MHP renders, so the training 2D noise is a real detector's.
+
+A detector is anything that follows :class:`Detector`: images in, COCO-17 pixel keypoints
+and confidences out. Missing keypoints are NaN with score 0, and keypoints outside the
+image get score 0 (as in the thesis's generator). Pixels follow rmpl's convention: from the
+top-left, pixel ``(i, j)`` centred on ``(i, j)``.
+
+:class:`MediaPipeDetector` wraps MediaPipe's BlazePose (``mediapipe==0.10.14``, the legacy
+``mp.solutions.pose`` API, ``model_complexity=1``, whose weights ship in the wheel; the other
+complexities and newer mediapipe download weights at run time). Its 33 landmarks are mapped
+to COCO-17 by name, with the landmark *visibility* as the score.
+
+Shape glossary: ``B`` images, ``J`` joints (17).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from rmpl.skeleton import BLAZEPOSE33, COCO17, Skeleton, conversion_matrix
+
+__all__ = ["Detector", "MediaPipeDetector", "DETECTORS", "zero_outside", "as_image_list"]
+
+Images = np.ndarray | Sequence[np.ndarray]
+
+
+@runtime_checkable
+class Detector(Protocol):
+    """A single-person 2D keypoint detector.
+
+    ``__call__(images)`` takes RGB uint8 images, shape (B, H, W, 3) or a sequence of
+    (H_i, W_i, 3) arrays of any sizes, and returns ``(keypoints, scores)``: pixels, shape
+    (B, J, 2), and confidences in [0, 1], shape (B, J), in ``skeleton``'s joint order.
+    Missing joints are NaN with score 0; joints outside the image have score 0.
+    """
+
+    name: str
+    skeleton: Skeleton
+
+    def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def as_image_list(images: Images) -> list[np.ndarray]:
+    """Validate images: a (B, H, W, 3) uint8 array or a sequence of (H, W, 3) uint8 arrays."""
+    if isinstance(images, np.ndarray):
+        if images.ndim != 4 or images.shape[-1] != 3:
+            raise ValueError(f"images must have shape (B, H, W, 3), got {images.shape}")
+        images = list(images)
+    out = []
+    for i, im in enumerate(images):
+        im = np.asarray(im)
+        if im.ndim != 3 or im.shape[-1] != 3 or im.dtype != np.uint8:
+            raise ValueError(
+                f"image {i} must be RGB uint8 of shape (H, W, 3), got {im.dtype} {im.shape}"
+            )
+        out.append(im)
+    return out
+
+
+def zero_outside(keypoints: np.ndarray, scores: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Scores with joints outside their image set to 0.
+
+    Args:
+        keypoints: pixels, shape (*, J, 2). scores: shape (*, J).
+        size: image (width, height) in pixels, shape (*, 2).
+
+    Returns:
+        Scores, shape (*, J); NaN keypoints also get 0.
+
+    >>> kp = np.array([[[5.0, 5.0], [-1.0, 5.0], [np.nan, np.nan]]])
+    >>> zero_outside(kp, np.ones((1, 3)), np.array([[10, 10]])).tolist()
+    [[1.0, 0.0, 0.0]]
+    """
+    size = np.asarray(size, dtype=float)[..., None, :]  # (*, 1, 2)
+    with np.errstate(invalid="ignore"):
+        # Pixel i covers [i - 0.5, i + 0.5).
+        inside = np.all((keypoints >= -0.5) & (keypoints < size - 0.5), axis=-1)
+    return np.where(inside, scores, 0.0)
+
+
+class MediaPipeDetector:
+    """MediaPipe BlazePose (33 landmarks) mapped to COCO-17, one person per image.
+
+    Args:
+        model_complexity: BlazePose model; only 1 ships in the ``mediapipe==0.10.14`` wheel.
+        min_detection_confidence: person-detector threshold; below it the image is a miss.
+
+    Use it as a context manager, or call :meth:`close`, to free the MediaPipe graph.
+    """
+
+    name = "mediapipe"
+    skeleton = COCO17
+
+    def __init__(self, model_complexity: int = 1, min_detection_confidence: float = 0.5) -> None:
+        try:
+            import mediapipe as mp
+        except ImportError as e:
+            raise ImportError(
+                "MediaPipeDetector needs mediapipe==0.10.14: pip install 'rmpl[synth]'"
+            ) from e
+        # Each image is a new scene: static mode runs the person detector every time
+        # instead of tracking from the previous image.
+        self._pose = mp.solutions.pose.Pose(
+            static_image_mode=True,
+            model_complexity=model_complexity,
+            enable_segmentation=False,
+            min_detection_confidence=min_detection_confidence,
+        )
+        self._to_coco = conversion_matrix(BLAZEPOSE33, COCO17)  # (17, 33), one 1 per row
+        self._source = self._to_coco.argmax(axis=1)
+
+    def close(self) -> None:
+        self._pose.close()
+
+    def __enter__(self) -> MediaPipeDetector:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]:
+        """Detect. See :class:`Detector`. Returns COCO-17 keypoints (B, 17, 2), scores (B, 17)."""
+        images = as_image_list(images)
+        J = COCO17.num_joints
+        keypoints = np.full((len(images), J, 2), np.nan)
+        scores = np.zeros((len(images), J))
+        sizes = np.zeros((len(images), 2))
+        for i, im in enumerate(images):
+            h, w = im.shape[:2]
+            sizes[i] = w, h
+            result = self._pose.process(np.ascontiguousarray(im))
+            if result.pose_landmarks is None:
+                continue
+            lm = result.pose_landmarks.landmark
+            xyv = np.array([(p.x, p.y, p.visibility) for p in lm])[self._source]  # (17, 3)
+            # Normalised coordinates run from the image's left/top edge (0) to its right/bottom
+            # edge (1); rmpl's pixel centres are at integers.
+            keypoints[i] = xyv[:, :2] * (w, h) - 0.5
+            scores[i] = np.clip(xyv[:, 2], 0.0, 1.0)
+        return keypoints, zero_outside(keypoints, scores, sizes)
+
+
+#: Detector factories by name.
+DETECTORS: dict[str, Callable[..., Detector]] = {"mediapipe": MediaPipeDetector}
