@@ -1,0 +1,1 @@
+"""The training-data generator: real motion, bodies, cameras, rendering, detections, noise."""
