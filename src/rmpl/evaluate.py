@@ -136,8 +136,14 @@ def evaluate_shelf(
                 for name in methods:
                     per_method[name].append(_scores(preds[name], data.gt, common))
             for name, rows in per_method.items():
-                ev.results[(label, name)] = {k: float(np.nanmean([r[k] for r in rows])) for k in rows[0]}
+                ev.results[(label, name)] = {k: _mean([r[k] for r in rows]) for k in rows[0]}
     return ev
+
+
+def _mean(values: list[float]) -> float:
+    """Mean of the finite values; NaN when there are none (e.g. an actor absent)."""
+    v = np.asarray(values, float)
+    return float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else float("nan")
 
 
 def view_subsets(num_views: int, spec: str) -> dict[str, list[tuple[int, ...]]]:

@@ -1,0 +1,129 @@
+"""The 3D commands end to end on tiny scenes built here, and their bad-input behaviour."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from rmpl.cli import main
+from rmpl.geometry.camera import Camera, Rig, look_at
+from rmpl.io.calibration import save_rig
+from rmpl.io.keypoints import Keypoints2D, save_keypoints
+from rmpl.io.poses import load_poses
+from rmpl.model.lifter import PRESETS, RMPL
+from rmpl.train import save_checkpoint
+
+
+def make_scene(tmp_path, views=3, frames=6, seed=0):
+    rng = np.random.default_rng(seed)
+    K = np.array([[900.0, 0, 480], [0, 900, 360], [0, 0, 1]])
+    cams = []
+    for v in range(views):
+        a = 2 * np.pi * v / views
+        R, t = look_at(np.array([4 * np.cos(a), 4 * np.sin(a), 2.0]), np.array([0.0, 0, 1]))
+        cams.append(Camera(K, R, t, size=(960, 720), name=f"cam{v}"))
+    rig = Rig(tuple(cams))
+    X = rng.uniform(-0.4, 0.4, (frames, 17, 3)) + [0, 0, 1]
+    kp = rig.project(X)  # (T, V, J, 2)
+    sc = np.full(kp.shape[:-1], 0.9)
+    save_rig(rig, tmp_path / "calib.toml")
+    save_keypoints(
+        Keypoints2D(kp[:, :, None], sc[:, :, None], "coco17", rig.names, np.arange(frames), 30.0),
+        tmp_path / "kp.json",
+    )
+    return X
+
+
+@pytest.fixture
+def tiny_model(tmp_path):
+    torch.manual_seed(0)
+    save_checkpoint(RMPL(PRESETS["tiny"]), tmp_path / "model")
+    return str(tmp_path / "model")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".json", ".trc", ".c3d"])
+def test_triangulate_writes_every_format(tmp_path, suffix):
+    X = make_scene(tmp_path)
+    out = tmp_path / f"out{suffix}"
+    args = ["triangulate", "--calib", str(tmp_path / "calib.toml"),
+            "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    assert out.is_file()
+    if suffix in (".npz", ".json", ".trc"):
+        got = load_poses(out).points[:, 0]
+        assert np.allclose(got, X, atol=1e-4)
+
+
+def test_triangulate_robust(tmp_path):
+    X = make_scene(tmp_path, views=4)
+    out = tmp_path / "out.npz"
+    assert main(["triangulate", "--robust", "--calib", str(tmp_path / "calib.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]) == 0  # fmt: skip
+    assert np.allclose(load_poses(out).points[:, 0], X, atol=1e-4)
+
+
+def test_lift_with_a_checkpoint(tmp_path, tiny_model):
+    make_scene(tmp_path)
+    out = tmp_path / "lifted.json"
+    assert main(["lift", "--model", tiny_model, "--calib", str(tmp_path / "calib.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]) == 0  # fmt: skip
+    doc = json.loads(out.read_text())
+    poses = load_poses(out)
+    assert poses.points.shape == (6, 1, 17, 3)
+    assert np.isfinite(poses.points).all()
+    assert (poses.num_views == 3).all()
+    assert doc  # a JSON document, not an empty file
+
+
+def test_views_not_matching_calibration_fail_cleanly(tmp_path, tiny_model, capsys):
+    make_scene(tmp_path, views=3)
+    other = tmp_path / "other"
+    other.mkdir()
+    make_scene(other, views=2)
+    out = tmp_path / "x.npz"
+    for cmd in (["lift", "--model", tiny_model], ["triangulate"]):
+        code = main([*cmd, "--calib", str(other / "calib.toml"),
+                     "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)])  # fmt: skip
+        assert code == 2
+        err = capsys.readouterr().err
+        assert "views" in err and "calib.toml" in err
+        assert not out.exists()
+
+
+def test_all_zero_confidence_is_an_error(tmp_path, tiny_model, capsys):
+    make_scene(tmp_path)
+    kp = json.loads((tmp_path / "kp.json").read_text())
+    kp["scores"] = np.zeros(np.shape(kp["scores"])).tolist()
+    kp["keypoints"] = np.full(np.shape(kp["keypoints"]), np.nan).tolist()
+    (tmp_path / "kp.json").write_text(json.dumps(kp).replace("NaN", "null"))
+    out = tmp_path / "x.npz"
+    code = main(["lift", "--model", tiny_model, "--calib", str(tmp_path / "calib.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)])  # fmt: skip
+    assert code == 2
+    assert "scores" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_bad_output_suffix(tmp_path, capsys):
+    make_scene(tmp_path)
+    code = main(["triangulate", "--calib", str(tmp_path / "calib.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.xlsx")])  # fmt: skip
+    assert code == 2
+    assert ".trc" in capsys.readouterr().err
+
+
+def test_missing_calibration_file(tmp_path, capsys):
+    make_scene(tmp_path)
+    code = main(["triangulate", "--calib", str(tmp_path / "nope.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.npz")])  # fmt: skip
+    assert code == 2
+    assert "nope.toml" in capsys.readouterr().err
+
+
+def test_unknown_model_name(tmp_path, capsys):
+    make_scene(tmp_path)
+    code = main(["lift", "--model", "no-such-model", "--calib", str(tmp_path / "calib.toml"),
+                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.npz")])  # fmt: skip
+    assert code == 2
+    assert "no-such-model" in capsys.readouterr().err
