@@ -1,0 +1,263 @@
+"""From 2D detections of several calibrated views to tracked, smoothed 3D skeletons.
+
+Each stage is a function usable on its own:
+
+1. :func:`associate_frames`: per frame, group the views' 2D people into 3D people by
+   geometry (:mod:`rmpl.association`); with one person per view this is the identity.
+2. :func:`estimate`: lift (RMPL) or triangulate every associated person, all frames batched.
+3. :func:`track_people`: identities over time (:mod:`rmpl.tracking`).
+4. :func:`smooth`: outlier removal, gap filling (flagged as interpolated) and a zero-phase
+   Butterworth or a one-euro filter (:mod:`rmpl.temporal`).
+
+:func:`run` chains them and returns a :class:`rmpl.io.poses.Poses3D`.
+
+Shape glossary: ``T`` frames, ``V`` views, ``P`` people, ``N`` people in one frame,
+``J`` joints.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from rmpl.association import Association, AssociationConfig, associate
+from rmpl.geometry.camera import Rig
+from rmpl.io.poses import JointSource, Poses3D
+
+__all__ = ["RunConfig", "associate_frames", "estimate", "track_people", "smooth", "run"]
+
+log = logging.getLogger(__name__)
+
+METHODS = ("rmpl", "triangulate", "robust")
+FILTERS = ("butterworth", "one-euro", "none")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """Settings of :func:`run`.
+
+    Attributes:
+        method: "rmpl" (learned lifting), "triangulate" (weighted DLT) or "robust".
+        model: shipped model name or checkpoint folder, for "rmpl".
+        up: world up axis (3,), or None to estimate it from the cameras.
+        filter: "butterworth" (zero-phase, Pose2Sim's default), "one-euro" or "none".
+        cutoff: Butterworth cut-off frequency, Hz (Pose2Sim: 6 Hz).
+        order: Butterworth order (the two-pass total; Pose2Sim: 4).
+        one_euro_min_cutoff: one-euro minimum cut-off, Hz.
+        one_euro_beta: one-euro speed coefficient (per m/s).
+        hampel: remove outliers with a Hampel filter (window 7) before filling gaps.
+        max_gap: fill gaps up to this many frames (Pose2Sim: 20); 0 disables.
+        track_distance: gate of the tracker, metres of mean joint distance.
+        max_missed: frames a track survives without a match.
+        association: cross-view association thresholds.
+    """
+
+    method: str = "rmpl"
+    model: str = "default"
+    up: tuple[float, float, float] | None = None
+    filter: str = "butterworth"
+    cutoff: float = 6.0
+    order: int = 4
+    one_euro_min_cutoff: float = 1.0
+    one_euro_beta: float = 1.0
+    hampel: bool = True
+    max_gap: int = 20
+    track_distance: float = 0.5
+    max_missed: int = 10
+    association: AssociationConfig = field(default_factory=AssociationConfig)
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
+        if self.filter not in FILTERS:
+            raise ValueError(f"filter must be one of {FILTERS}, got {self.filter!r}")
+
+
+def associate_frames(
+    keypoints: np.ndarray,
+    scores: np.ndarray,
+    rig: Rig,
+    config: AssociationConfig | None = None,
+    progress: bool = False,
+) -> list[Association]:
+    """Per-frame 3D people from per-view 2D people.
+
+    Args:
+        keypoints: (T, V, P, J, 2) pixels, people not associated across views.
+        scores: (T, V, P, J).
+
+    Returns:
+        One :class:`Association` per frame: keypoints (N, V, J, 2), scores (N, V, J).
+    """
+    from tqdm import tqdm
+
+    T, V, P = keypoints.shape[:3]
+    present = (scores > 0).any(-1)  # (T, V, P)
+    if P == 1:  # one person per view: nothing to associate
+        out = []
+        for t in range(T):
+            seen = present[t, :, 0]
+            members = np.where(seen, 0, -1)[None]
+            if seen.sum() == 0:
+                out.append(Association(keypoints[t, :, 0][None][:0], scores[t, :, 0][None][:0], members[:0]))
+            else:
+                out.append(Association(keypoints[t, :, 0][None], scores[t, :, 0][None], members))
+        return out
+    frames = range(T)
+    if progress:
+        frames = tqdm(frames, desc="associate", unit="frame")
+    return [
+        associate(
+            [keypoints[t, v][present[t, v]] for v in range(V)],
+            [scores[t, v][present[t, v]] for v in range(V)],
+            rig,
+            config,
+        )
+        for t in frames
+    ]
+
+
+def _estimator(config: RunConfig):
+    from rmpl.geometry.triangulate import triangulate, triangulate_robust
+    from rmpl.skeleton import COCO17
+
+    if config.method == "rmpl":
+        from rmpl.inference import Lifter
+
+        lifter = Lifter.from_pretrained(config.model)
+        up = None if config.up is None else np.asarray(config.up, float)
+        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(lifter.lift(kp, sc, rig, up=up))
+    if config.method == "robust":
+        return lambda kp, sc, rig: (
+            lambda r: (r.points, r.num_views)
+        )(triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs))
+    return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(triangulate(kp, sc, rig))
+
+
+def estimate(
+    people: list[Association], rig: Rig, config: RunConfig, chunk: int = 2048, progress: bool = False
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """3D joints of every associated person, batched over frames.
+
+    Returns:
+        Per frame: points (N, J, 3) metres and the number of views per joint (N, J).
+    """
+    from tqdm import tqdm
+
+    fn = _estimator(config)
+    counts = [len(a) for a in people]
+    if sum(counts) == 0:
+        J = people[0].keypoints.shape[-2] if people else 17
+        return [np.zeros((0, J, 3)) for _ in people], [np.zeros((0, J), int) for _ in people]
+    kp = np.concatenate([a.keypoints for a in people if len(a)])
+    sc = np.concatenate([a.scores for a in people if len(a)])
+    pts = np.empty((len(kp), kp.shape[-2], 3))
+    nv = np.empty((len(kp), kp.shape[-2]), int)
+    starts = range(0, len(kp), chunk)
+    if progress and len(kp) > chunk:
+        starts = tqdm(starts, desc=config.method, unit="chunk")
+    for s in starts:
+        pts[s : s + chunk], nv[s : s + chunk] = fn(kp[s : s + chunk], sc[s : s + chunk], rig)
+    split = np.cumsum(counts)[:-1]
+    return np.split(pts, split), np.split(nv, split)
+
+
+def track_people(
+    points: list[np.ndarray], num_views: list[np.ndarray], config: RunConfig
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Identities over time.
+
+    Returns:
+        tracks (T, P, J, 3), views (T, P, J) (0 where absent), ids (P,).
+    """
+    from rmpl.tracking import track, track_indices
+
+    T = len(points)
+    J = points[0].shape[-2] if T else 17
+    if all(len(p) <= 1 for p in points):  # a single person: no identities to keep
+        tracks = np.full((T, 1, J, 3), np.nan)
+        views = np.zeros((T, 1, J), int)
+        for t, (p, v) in enumerate(zip(points, num_views, strict=True)):
+            if len(p):
+                tracks[t, 0], views[t, 0] = p[0], v[0]
+        return tracks, views, np.array([0])
+    kwargs = {"max_distance": config.track_distance, "max_missed": config.max_missed}
+    tracks, ids = track(points, **kwargs)
+    index = track_indices(points, **kwargs)  # (T, P): person index per frame, -1 absent
+    views = np.zeros(tracks.shape[:3], int)
+    for t in range(T):
+        for p in np.nonzero(index[t] >= 0)[0]:
+            views[t, p] = num_views[t][index[t, p]]
+    return tracks, views, ids
+
+
+def smooth(
+    tracks: np.ndarray, fps: float | None, config: RunConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """Outliers, gaps and jitter.
+
+    Returns:
+        smoothed (T, P, J, 3) and interpolated (T, P, J) bool: joints filled by the gap
+        filler (they were missing before).
+    """
+    from rmpl import temporal
+
+    x = tracks
+    if config.hampel and len(x) >= 7:
+        x = temporal.hampel(x, window=7)
+    interpolated = np.zeros(x.shape[:-1], bool)
+    if config.max_gap > 0:
+        x, interpolated = temporal.fill_gaps(x, max_gap=config.max_gap)
+    if config.filter != "none" and fps is None:
+        log.warning("no frame rate known (give --fps): skipping the %s filter", config.filter)
+    elif config.filter == "butterworth" and fps is not None and config.cutoff < fps / 2:
+        x = temporal.butterworth(x, fps, cutoff=config.cutoff, order=config.order)
+    elif config.filter == "one-euro" and fps is not None:
+        x = temporal.one_euro(x, fps, min_cutoff=config.one_euro_min_cutoff, beta=config.one_euro_beta)
+    return x, interpolated & np.isfinite(x).all(-1)
+
+
+def run(
+    keypoints: np.ndarray,
+    scores: np.ndarray,
+    rig: Rig,
+    frames: np.ndarray | None = None,
+    fps: float | None = None,
+    config: RunConfig | None = None,
+    temporal: bool = True,
+    progress: bool = True,
+) -> Poses3D:
+    """The whole chain on 2D input (T, V, P, J, 2) + scores (T, V, P, J).
+
+    Args:
+        temporal: apply :func:`smooth` (outliers, gaps, filter); False keeps raw estimates.
+
+    Returns:
+        :class:`Poses3D` with per-joint source flags and view counts.
+    """
+    cfg = config or RunConfig()
+    T = keypoints.shape[0]
+    people = associate_frames(keypoints, scores, rig, cfg.association, progress)
+    pts, nv = estimate(people, rig, cfg, progress=progress)
+    tracks, views, ids = track_people(pts, nv, cfg)
+    raw_ok = np.isfinite(tracks).all(-1)
+    interpolated = np.zeros(raw_ok.shape, bool)
+    if temporal:
+        tracks, interpolated = smooth(tracks, fps, cfg)
+        interpolated &= ~raw_ok
+    ok = np.isfinite(tracks).all(-1)
+    source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
+    flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))
+    tracks[~ok] = np.nan
+    return Poses3D(
+        points=tracks,
+        scores=None,
+        flags=flags.astype(np.uint8),
+        num_views=np.where(ok, views, 0).astype(np.int32),
+        skeleton="coco17",
+        frames=np.arange(T) if frames is None else np.asarray(frames),
+        fps=fps,
+        person_ids=np.asarray(ids),
+    )
