@@ -43,10 +43,18 @@ def main(argv=None) -> int:
     yaw = rodrigues(np.array([0.0, 0.0, rng.uniform(-np.pi, np.pi)]))
     poses = (poses - [centre[0], centre[1], 0.0]) @ yaw.T
     K, R, t, size = sample_cameras(4, np.array([0.0, 0.0, 1.0]), "shelf", rng)
-    rig = Rig(tuple(Camera(K[v], R[v], t[v], size=tuple(size[v]), name=f"cam{v + 1}") for v in range(4)))
+    rig = Rig(
+        tuple(Camera(K[v], R[v], t[v], size=tuple(size[v]), name=f"cam{v + 1}") for v in range(4))
+    )
     T = len(poses)
-    kp, sc = detect_like(poses, np.broadcast_to(K, (T, 4, 3, 3)), np.broadcast_to(R, (T, 4, 3, 3)),
-                         np.broadcast_to(t, (T, 4, 3)), np.broadcast_to(size, (T, 4, 2)), rng)  # fmt: skip
+    kp, sc = detect_like(
+        poses,
+        np.broadcast_to(K, (T, 4, 3, 3)),
+        np.broadcast_to(R, (T, 4, 3, 3)),
+        np.broadcast_to(t, (T, 4, 3)),
+        np.broadcast_to(size, (T, 4, 2)),
+        rng,
+    )
     args.out.mkdir(parents=True, exist_ok=True)
     save_rig(rig, args.out / "calibration.toml")
     save_keypoints(
@@ -54,8 +62,12 @@ def main(argv=None) -> int:
         args.out / "keypoints.json",
     )
     with atomic_path(args.out / "ground_truth.npz") as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, points=poses[:, None].astype(np.float32), fps=args.fps,
-                            source=f"CMU mocap {args.clip} (subject 03, held out of training)")  # fmt: skip
+        np.savez_compressed(
+            f,
+            points=poses[:, None].astype(np.float32),
+            fps=args.fps,
+            source=f"CMU mocap {args.clip} (subject 03, held out of training)",
+        )
     print(f"wrote {args.out}: {T} frames, 4 views, {100 * (sc == 0).mean():.0f}% keypoints missing")
     return 0
 

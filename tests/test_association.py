@@ -25,15 +25,24 @@ from rmpl.skeleton import BODY25, COCO17
 
 # A standing stick figure in COCO-17 order, body frame (x = its left, y = forward, z up).
 _FIGURE = {
-    "nose": (0.0, 0.10, 1.60), "left_eye": (0.03, 0.08, 1.63), "right_eye": (-0.03, 0.08, 1.63),
-    "left_ear": (0.08, 0.0, 1.60), "right_ear": (-0.08, 0.0, 1.60),
-    "left_shoulder": (0.18, 0.0, 1.42), "right_shoulder": (-0.18, 0.0, 1.42),
-    "left_elbow": (0.22, 0.0, 1.12), "right_elbow": (-0.22, 0.0, 1.12),
-    "left_wrist": (0.24, 0.05, 0.85), "right_wrist": (-0.24, 0.05, 0.85),
-    "left_hip": (0.10, 0.0, 0.92), "right_hip": (-0.10, 0.0, 0.92),
-    "left_knee": (0.10, 0.02, 0.50), "right_knee": (-0.10, 0.02, 0.50),
-    "left_ankle": (0.10, 0.0, 0.08), "right_ankle": (-0.10, 0.0, 0.08),
-}  # fmt: skip
+    "nose": (0.0, 0.10, 1.60),
+    "left_eye": (0.03, 0.08, 1.63),
+    "right_eye": (-0.03, 0.08, 1.63),
+    "left_ear": (0.08, 0.0, 1.60),
+    "right_ear": (-0.08, 0.0, 1.60),
+    "left_shoulder": (0.18, 0.0, 1.42),
+    "right_shoulder": (-0.18, 0.0, 1.42),
+    "left_elbow": (0.22, 0.0, 1.12),
+    "right_elbow": (-0.22, 0.0, 1.12),
+    "left_wrist": (0.24, 0.05, 0.85),
+    "right_wrist": (-0.24, 0.05, 0.85),
+    "left_hip": (0.10, 0.0, 0.92),
+    "right_hip": (-0.10, 0.0, 0.92),
+    "left_knee": (0.10, 0.02, 0.50),
+    "right_knee": (-0.10, 0.02, 0.50),
+    "left_ankle": (0.10, 0.0, 0.08),
+    "right_ankle": (-0.10, 0.0, 0.08),
+}
 TEMPLATE = np.array([_FIGURE[n] for n in COCO17.joints])  # (17, 3), metres
 
 

@@ -27,8 +27,9 @@ def _walk(T: int = 300, P: int = 2, J: int = 5, seed: int = 0) -> np.ndarray:
     """Smooth synthetic trajectories, shape (T, P, J, 3), metres."""
     rng = np.random.default_rng(seed)
     t = np.arange(T)[:, None, None, None] / FPS
-    amp, freq, phase = (rng.uniform(lo, hi, (1, P, J, 3)) for lo, hi in
-                        [(0.05, 0.3), (0.3, 2.0), (0, 2 * np.pi)])  # fmt: skip
+    amp, freq, phase = (
+        rng.uniform(lo, hi, (1, P, J, 3)) for lo, hi in [(0.05, 0.3), (0.3, 2.0), (0, 2 * np.pi)]
+    )
     return rng.normal(0, 1, (1, P, J, 3)) + amp * np.sin(2 * np.pi * freq * t + phase)
 
 
@@ -128,9 +129,14 @@ def test_butterworth_reduces_noise_on_smooth_motion():
 
 @pytest.mark.parametrize(
     ("kwargs", "field"),
-    [({"cutoff": 50.0}, "cutoff"), ({"cutoff": -1.0}, "cutoff"), ({"order": 3}, "order"),
-     ({"order": 0}, "order"), ({"fps": 0.0}, "fps")],
-)  # fmt: skip
+    [
+        ({"cutoff": 50.0}, "cutoff"),
+        ({"cutoff": -1.0}, "cutoff"),
+        ({"order": 3}, "order"),
+        ({"order": 0}, "order"),
+        ({"fps": 0.0}, "fps"),
+    ],
+)
 def test_butterworth_rejects_bad_settings(kwargs, field):
     args = {"fps": FPS, **kwargs}
     with pytest.raises(InputError) as e:

@@ -15,12 +15,14 @@ FPS = 30.0
 def _body(height: float, seed: int) -> np.ndarray:
     """A rough standing body of the given height, shape (J, 3), feet at z = 0."""
     rng = np.random.default_rng(seed)
-    return np.column_stack([rng.uniform(-0.2, 0.2, J), rng.uniform(-0.15, 0.15, J),
-                            np.linspace(0.0, height, J)])  # fmt: skip
+    return np.column_stack(
+        [rng.uniform(-0.2, 0.2, J), rng.uniform(-0.15, 0.15, J), np.linspace(0.0, height, J)]
+    )
 
 
-def _scene(paths: dict[int, np.ndarray], T: int, seed: int, noise: float = 0.01,
-           same_body: bool = False):  # fmt: skip
+def _scene(
+    paths: dict[int, np.ndarray], T: int, seed: int, noise: float = 0.01, same_body: bool = False
+):
     """Shuffled per-frame detections from people's root paths, shape (T, 3) each, NaN rows
     where absent. Returns the frames and, per frame, the true id of each detection."""
     rng = np.random.default_rng(seed)
@@ -84,9 +86,12 @@ def test_fast_look_alikes_passing_close_need_the_velocity_prediction():
 
 def test_four_people_crossing_diagonally_at_one_point():
     T = 90
-    paths = {i: _line(-2.5 * np.array([np.cos(a), np.sin(a), 0]),
-                      1.6 * np.array([np.cos(a), np.sin(a), 0]), T)
-             for i, a in enumerate(np.deg2rad([0, 70, 160, 250]))}  # fmt: skip
+    paths = {
+        i: _line(
+            -2.5 * np.array([np.cos(a), np.sin(a), 0]), 1.6 * np.array([np.cos(a), np.sin(a), 0]), T
+        )
+        for i, a in enumerate(np.deg2rad([0, 70, 160, 250]))
+    }
     frames, truth = _scene(paths, T, seed=1)
     switches, used = _id_switches(track_indices(frames), truth)
     assert switches == 0
@@ -149,8 +154,9 @@ def test_min_length_drops_spurious_people_and_empty_rows_are_ignored():
 
 def test_missing_joints_still_match():
     T = 30
-    frames, truth = _scene({0: _line([0, 0, 0], [1, 0, 0], T), 1: _line([1, 1, 0], [0, 1, 0], T)},
-                           T, seed=6)  # fmt: skip
+    frames, truth = _scene(
+        {0: _line([0, 0, 0], [1, 0, 0], T), 1: _line([1, 1, 0], [0, 1, 0], T)}, T, seed=6
+    )
     rng = np.random.default_rng(7)
     for people in frames:
         people[rng.random(people.shape[:2]) < 0.3] = np.nan
@@ -159,21 +165,24 @@ def test_missing_joints_still_match():
 
 
 def test_a_padded_array_is_accepted():
-    frames, _ = _scene({0: _line([0, 0, 0], [1, 0, 0], 10), 1: _line([2, 0, 0], [0, 1, 0], 10)},
-                       10, seed=8)  # fmt: skip
+    frames, _ = _scene(
+        {0: _line([0, 0, 0], [1, 0, 0], 10), 1: _line([2, 0, 0], [0, 1, 0], 10)}, 10, seed=8
+    )
     tracks, ids = track(np.stack(frames))
     assert tracks.shape == (10, 2, J, 3) and ids.tolist() == [0, 1]
 
 
 @pytest.mark.parametrize(
     ("frames", "kwargs", "field"),
-    [([np.zeros((1, J, 2))], {}, "poses_per_frame[0]"),
-     ([np.zeros((1, J, 3)), np.zeros((1, 5, 3))], {}, "poses_per_frame[1]"),
-     ([], {}, "poses_per_frame"),
-     ([np.zeros((1, J, 3))], {"max_distance": 0.0}, "max_distance"),
-     ([np.zeros((1, J, 3))], {"max_missed": -1}, "max_missed"),
-     ([np.zeros((1, J, 3))], {"min_length": 0}, "min_length")],
-)  # fmt: skip
+    [
+        ([np.zeros((1, J, 2))], {}, "poses_per_frame[0]"),
+        ([np.zeros((1, J, 3)), np.zeros((1, 5, 3))], {}, "poses_per_frame[1]"),
+        ([], {}, "poses_per_frame"),
+        ([np.zeros((1, J, 3))], {"max_distance": 0.0}, "max_distance"),
+        ([np.zeros((1, J, 3))], {"max_missed": -1}, "max_missed"),
+        ([np.zeros((1, J, 3))], {"min_length": 0}, "min_length"),
+    ],
+)
 def test_bad_input_names_the_field(frames, kwargs, field):
     with pytest.raises(InputError) as e:
         track(frames, **kwargs)

@@ -31,8 +31,27 @@ def _rig(up=(0.0, 0.0, 1.0)) -> Rig:
 def _walkers(T: int = 12, P: int = 2) -> np.ndarray:
     """COCO-17 people standing on z = 0 (Z-up world) and walking along x, (T, P, 17, 3)."""
     rng = np.random.default_rng(0)
-    heights = np.array([1.6, 1.65, 1.65, 1.6, 1.6, 1.45, 1.45, 1.15, 1.15, 0.9, 0.9, 0.95,
-                        0.95, 0.5, 0.5, 0.08, 0.08])  # COCO-17 order, nose .. ankles  # fmt: skip
+    heights = np.array(
+        [
+            1.6,
+            1.65,
+            1.65,
+            1.6,
+            1.6,
+            1.45,
+            1.45,
+            1.15,
+            1.15,
+            0.9,
+            0.9,
+            0.95,
+            0.95,
+            0.5,
+            0.5,
+            0.08,
+            0.08,
+        ]
+    )  # COCO-17 order, nose .. ankles
     body = np.column_stack([rng.uniform(-0.2, 0.2, 17), rng.uniform(-0.1, 0.1, 17), heights])
     t = np.arange(T)[:, None, None, None]
     offset = np.array([[0.0, 0.0, 0.0], [0.5, 1.0, 0.0], [-1.0, 0.5, 0.0]])[:P]
@@ -76,13 +95,15 @@ def test_page_is_self_contained_and_carries_the_poses(tmp_path):
 
 def test_frusta_corners_project_to_the_image_corners(tmp_path):
     rig = _rig()
-    data = _embedded(write_viewer(_walkers(), tmp_path / "v.html", "coco17", rig).read_text(),
-                     "rmpl-data")  # fmt: skip
+    data = _embedded(
+        write_viewer(_walkers(), tmp_path / "v.html", "coco17", rig).read_text(), "rmpl-data"
+    )
     back = view_rotation(data["up"])  # viewer -> world is its transpose
     for cam, drawn in zip(rig, data["cameras"], strict=True):
         corners = np.array(drawn["corners"]) @ back
-        np.testing.assert_allclose(cam.project(corners), [[0, 0], [640, 0], [640, 480], [0, 480]],
-                                   atol=1e-6)  # fmt: skip
+        np.testing.assert_allclose(
+            cam.project(corners), [[0, 0], [640, 0], [640, 480], [0, 480]], atol=1e-6
+        )
         np.testing.assert_allclose(np.array(drawn["center"]) @ back, cam.center, atol=1e-9)
         depth = (cam.R @ corners.T + cam.t[:, None])[2]
         assert np.allclose(depth, depth[0]) and 0.1 < depth[0] <= 1.0
@@ -109,10 +130,16 @@ def test_guess_up_from_bodies_then_cameras_then_default():
 
 def test_poses3d_gives_skeleton_fps_frames_and_ids(tmp_path):
     pts = _walkers(T=5, P=2)
-    poses = Poses3D(points=pts, skeleton="coco17", fps=50.0, frames=np.arange(100, 105),
-                    person_ids=np.array([7, 3]))  # fmt: skip
-    data = _embedded(write_viewer(poses, tmp_path / "p.html", title="My <trial>").read_text(),
-                     "rmpl-data")  # fmt: skip
+    poses = Poses3D(
+        points=pts,
+        skeleton="coco17",
+        fps=50.0,
+        frames=np.arange(100, 105),
+        person_ids=np.array([7, 3]),
+    )
+    data = _embedded(
+        write_viewer(poses, tmp_path / "p.html", title="My <trial>").read_text(), "rmpl-data"
+    )
     assert data["personIds"] == [7, 3] and data["frames"] == [100, 101, 102, 103, 104]
     assert data["fps"] == 50.0 and data["title"] == "My <trial>"
     assert "<title>My &lt;trial&gt;</title>" in (tmp_path / "p.html").read_text()
@@ -120,23 +147,27 @@ def test_poses3d_gives_skeleton_fps_frames_and_ids(tmp_path):
 
 def test_plain_bones_and_a_single_person(tmp_path):
     pts = _walkers(P=1)[:, 0, :5]  # (T, 5, 3): one person, 5 joints, no skeleton name
-    data = _embedded(write_viewer(pts, tmp_path / "b.html", [(0, 1), (1, 2), (3, 4)],
-                                  up="+z").read_text(), "rmpl-data")  # fmt: skip
+    data = _embedded(
+        write_viewer(pts, tmp_path / "b.html", [(0, 1), (1, 2), (3, 4)], up="+z").read_text(),
+        "rmpl-data",
+    )
     assert data["numPeople"] == 1 and data["sides"] == ["C", "C", "C"]
 
 
 @pytest.mark.parametrize(
     ("kwargs", "field"),
-    [({"poses": np.zeros((4, 2, 17, 2))}, "poses"),
-     ({"skeleton": None}, "skeleton"),  # 17 joints: coco17 or h36m17, ambiguous
-     ({"skeleton": "shelf14"}, "skeleton"),
-     ({"skeleton": [(0, 17)]}, "skeleton"),
-     ({"skeleton": "nope"}, "skeleton"),
-     ({"up": "up"}, "up"),
-     ({"fps": -1.0}, "fps"),
-     ({"fps": "fast"}, "fps"),
-     ({"cameras": "cam.toml"}, "cameras")],
-)  # fmt: skip
+    [
+        ({"poses": np.zeros((4, 2, 17, 2))}, "poses"),
+        ({"skeleton": None}, "skeleton"),  # 17 joints: coco17 or h36m17, ambiguous
+        ({"skeleton": "shelf14"}, "skeleton"),
+        ({"skeleton": [(0, 17)]}, "skeleton"),
+        ({"skeleton": "nope"}, "skeleton"),
+        ({"up": "up"}, "up"),
+        ({"fps": -1.0}, "fps"),
+        ({"fps": "fast"}, "fps"),
+        ({"cameras": "cam.toml"}, "cameras"),
+    ],
+)
 def test_bad_input_names_the_field(tmp_path, kwargs, field):
     args = {"poses": _walkers(T=3), "skeleton": "coco17", **kwargs}
     with pytest.raises(InputError) as e:
@@ -161,12 +192,25 @@ def _dump_dom(url: str) -> str:
         pytest.skip("no chromium on PATH (Debian: apt-get install chromium)")
     with tempfile.TemporaryDirectory() as profile:
         done = subprocess.run(
-            [browser, "--headless", "--no-sandbox", "--disable-gpu",
-             "--disable-background-networking", "--disable-component-update", "--no-first-run",
-             "--enable-unsafe-swiftshader", "--host-resolver-rules=MAP * ~NOTFOUND",
-             f"--user-data-dir={profile}", "--virtual-time-budget=5000", "--dump-dom", url],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
+            [
+                browser,
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--no-first-run",
+                "--enable-unsafe-swiftshader",
+                "--host-resolver-rules=MAP * ~NOTFOUND",
+                f"--user-data-dir={profile}",
+                "--virtual-time-budget=5000",
+                "--dump-dom",
+                url,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
     assert done.returncode == 0, done.stderr[-2000:]
     return done.stdout
 

@@ -27,8 +27,12 @@ def synthetic_inputs(batch: int, views: int, seed: int = 0):
     ang = np.linspace(0, 2 * np.pi, views, endpoint=False)
     K = np.array([[1000.0, 0, 500], [0, 1000, 400], [0, 0, 1]])
     cams = tuple(
-        Camera(K, *look_at(np.array([4 * np.cos(a), 4 * np.sin(a), 2.0]), np.array([0, 0, 1.0])),
-               size=(1000, 800), name=str(i))  # fmt: skip
+        Camera(
+            K,
+            *look_at(np.array([4 * np.cos(a), 4 * np.sin(a), 2.0]), np.array([0, 0, 1.0])),
+            size=(1000, 800),
+            name=str(i),
+        )
         for i, a in enumerate(ang)
     )
     rig = Rig(cams)
@@ -77,7 +81,9 @@ def run_bench(
     runners = {}
     for name, model in models.items():
         if "torch" in backends:
-            runners[(name, "torch")] = lambda r, s, m=model: m(torch.from_numpy(r), torch.from_numpy(s))
+            runners[(name, "torch")] = lambda r, s, m=model: m(
+                torch.from_numpy(r), torch.from_numpy(s)
+            )
         if "onnx" in backends:
             runners[(name, "onnx")] = OnnxLifter(model)
     rows = []
@@ -86,14 +92,37 @@ def run_bench(
         rays, scores, kp, rig = synthetic_inputs(b, v)
         with torch.no_grad():
             for (name, backend), fn in runners.items():
-                rate = _rate(lambda fn=fn: fn(rays, scores), b, min_time)
-                rows.append({"method": f"rmpl-{name}", "backend": backend, "views": v,
-                             "batch": b, "fps": rate})  # fmt: skip
+                rate = _rate(lambda fn=fn, r=rays, s=scores: fn(r, s), b, min_time)
+                rows.append(
+                    {
+                        "method": f"rmpl-{name}",
+                        "backend": backend,
+                        "views": v,
+                        "batch": b,
+                        "fps": rate,
+                    }
+                )
         if v >= 2:
-            rows.append({"method": "triangulate", "backend": "numpy", "views": v, "batch": b,
-                         "fps": _rate(lambda: triangulate(kp, scores, rig), b, min_time)})  # fmt: skip
-            rows.append({"method": "triangulate_robust", "backend": "numpy", "views": v, "batch": b,
-                         "fps": _rate(lambda: triangulate_robust(kp, scores, rig), b, min_time)})  # fmt: skip
+            rows.append(
+                {
+                    "method": "triangulate",
+                    "backend": "numpy",
+                    "views": v,
+                    "batch": b,
+                    "fps": _rate(lambda k=kp, s=scores, g=rig: triangulate(k, s, g), b, min_time),
+                }
+            )
+            rows.append(
+                {
+                    "method": "triangulate_robust",
+                    "backend": "numpy",
+                    "views": v,
+                    "batch": b,
+                    "fps": _rate(
+                        lambda k=kp, s=scores, g=rig: triangulate_robust(k, s, g), b, min_time
+                    ),
+                }
+            )
     return rows
 
 
@@ -114,14 +143,18 @@ def markdown(rows: list[dict]) -> str:
         out.append("|---:|" + "---:|" * len(batches))
         for v in sorted({r["views"] for r in sel}):
             cells = {r["batch"]: r["fps"] for r in sel if r["views"] == v}
-            out.append(f"| {v} | " + " | ".join(f"{cells[b]:.0f}" if b in cells else "—" for b in batches) + " |")
+            out.append(
+                f"| {v} | "
+                + " | ".join(f"{cells[b]:.0f}" if b in cells else "—" for b in batches)
+                + " |"
+            )
         out.append("")
     return "\n".join(out)
 
 
 def long_sequence_memory(frames: int, views: int = 4) -> tuple[float, float]:
     """Lift a long random sequence with the default model; returns (peak MB, seconds)."""
-    from rmpl.inference import Lifter, PRETRAINED
+    from rmpl.inference import PRETRAINED, Lifter
 
     rays, scores, kp, rig = synthetic_inputs(frames, views)
     if (PRETRAINED["default"] / "config.json").is_file():

@@ -45,9 +45,9 @@ def _rmpl(spec: str) -> Method:
 
 METHODS: dict[str, Callable[[str], Method]] = {
     "triangulate": lambda _: lambda kp, sc, rig: triangulate(kp, sc, rig).points,
-    "robust": lambda _: lambda kp, sc, rig: triangulate_robust(
-        kp, sc, rig, swap_pairs=COCO17.flip_pairs
-    ).points,
+    "robust": lambda _: (
+        lambda kp, sc, rig: triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs).points
+    ),
     "rmpl": _rmpl,
 }
 
@@ -103,7 +103,13 @@ def evaluate_shelf(
     """
     from tqdm import tqdm
 
-    from rmpl.association import AssociationConfig, GroupingConfig, associate, group_people, match_poses
+    from rmpl.association import (
+        AssociationConfig,
+        GroupingConfig,
+        associate,
+        group_people,
+        match_poses,
+    )
 
     grouping, assoc = GroupingConfig(), AssociationConfig()
     people = [
@@ -121,7 +127,9 @@ def evaluate_shelf(
                 rig = data.rig[list(views)]
                 preds = {m: np.full(data.gt.shape, np.nan) for m in methods}
                 for t, frame in enumerate(people):
-                    found = associate([frame[v][0] for v in views], [frame[v][1] for v in views], rig, assoc)
+                    found = associate(
+                        [frame[v][0] for v in views], [frame[v][1] for v in views], rig, assoc
+                    )
                     bar.update()
                     if len(found) == 0:
                         continue
@@ -180,6 +188,12 @@ def shelf_markdown(ev: ShelfEvaluation) -> str:
     for (label, method), r in ev.results.items():
         pcps = [r[f"pcp{a}"] for a in ACTORS]
         mean = np.mean([r[f"pcp{a}"] for a in ev.present_actors]) if ev.present_actors else np.nan
-        cells = [_fmt(r["mpjpe"]), _fmt(r["coverage"]), _fmt(r["mpjpe_common"]), *map(_fmt, pcps), _fmt(mean)]
+        cells = [
+            _fmt(r["mpjpe"]),
+            _fmt(r["coverage"]),
+            _fmt(r["mpjpe_common"]),
+            *map(_fmt, pcps),
+            _fmt(mean),
+        ]
         lines.append(f"| {label} | {method} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

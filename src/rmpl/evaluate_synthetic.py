@@ -15,8 +15,12 @@ def _per_scene(method, batch) -> np.ndarray:
     """Run a rig-level method scene by scene (each scene has its own cameras): (B, J, 3)."""
     out = np.full(batch.target.shape, np.nan)
     for i in range(len(batch.target)):
-        rig = Rig(tuple(Camera(batch.K[i, v], batch.R[i, v], batch.t[i, v], name=str(v))
-                        for v in range(batch.K.shape[1])))  # fmt: skip
+        rig = Rig(
+            tuple(
+                Camera(batch.K[i, v], batch.R[i, v], batch.t[i, v], name=str(v))
+                for v in range(batch.K.shape[1])
+            )
+        )
         out[i] = method(batch.keypoints[i][None], batch.scores[i][None], rig)[0]
     return out
 
@@ -35,18 +39,30 @@ def evaluate_synthetic(
             pred = _per_scene(method, batch)
             e = np.linalg.norm(pred - batch.target, axis=-1) * 1000
             ok = np.isfinite(e)
-            rows.append({
-                "views": v, "method": name,
-                "mpjpe": float(np.nanmean(e)) if ok.any() else float("nan"),
-                "kpstar": float(np.nanmean(e[:, list(KP_STAR)])) if ok[:, list(KP_STAR)].any() else float("nan"),
-                "coverage": float(100 * ok.mean()),
-            })  # fmt: skip
+            rows.append(
+                {
+                    "views": v,
+                    "method": name,
+                    "mpjpe": float(np.nanmean(e)) if ok.any() else float("nan"),
+                    "kpstar": float(np.nanmean(e[:, list(KP_STAR)]))
+                    if ok[:, list(KP_STAR)].any()
+                    else float("nan"),
+                    "coverage": float(100 * ok.mean()),
+                }
+            )
     return rows
 
 
+def _fmt(x: float) -> str:
+    return "—" if not np.isfinite(x) else f"{x:.1f}"
+
+
 def synthetic_markdown(rows: list[dict]) -> str:
-    lines = ["| views | method | MPJPE (mm) | KP* MPJPE (mm) | coverage (%) |", "|---:|---|---:|---:|---:|"]
+    lines = [
+        "| views | method | MPJPE (mm) | KP* MPJPE (mm) | coverage (%) |",
+        "|---:|---|---:|---:|---:|",
+    ]
     for r in rows:
-        f = lambda x: "—" if not np.isfinite(x) else f"{x:.1f}"  # noqa: E731
-        lines.append(f"| {r['views']} | {r['method']} | {f(r['mpjpe'])} | {f(r['kpstar'])} | {f(r['coverage'])} |")
+        cells = [_fmt(r[k]) for k in ("mpjpe", "kpstar", "coverage")]
+        lines.append(f"| {r['views']} | {r['method']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"

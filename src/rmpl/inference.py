@@ -109,7 +109,9 @@ class Lifter:
                 self._onnx = OnnxLifter(self.model)
             except ImportError:
                 if backend == "onnx":
-                    raise ImportError("backend='onnx' needs onnxruntime: pip install 'rmpl[fast]'") from None
+                    raise ImportError(
+                        "backend='onnx' needs onnxruntime: pip install 'rmpl[fast]'"
+                    ) from None
                 log.debug("onnxruntime not installed; lifting with torch")
 
     @property
@@ -175,12 +177,16 @@ class Lifter:
             raise InputError(None, "scores", f"shape {kp.shape[:-1]} matching keypoints", sc.shape)
         if kp.shape[-3] != len(rig):
             raise InputError(
-                None, "keypoints", f"{len(rig)} views to match the calibration's cameras "
-                f"{rig.names}", f"{kp.shape[-3]} views"
-            )  # fmt: skip
+                None,
+                "keypoints",
+                f"{len(rig)} views to match the calibration's cameras {rig.names}",
+                f"{kp.shape[-3]} views",
+            )
         ok = np.isfinite(kp).all(-1) & np.isfinite(sc) & (sc > 0)
         if not ok.any():
-            raise InputError(None, "scores", "at least one keypoint with confidence > 0", "all zero")
+            raise InputError(
+                None, "scores", "at least one keypoint with confidence > 0", "all zero"
+            )
         lead = kp.shape[:-3]
         V = kp.shape[-3]
         rays = rays_from_keypoints(np.where(ok[..., None], kp, 0.0), rig)

@@ -18,7 +18,9 @@ def joint_errors(pred: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Euclidean error per joint, shape (*, J); NaN where the ground truth is missing."""
     pred, gt = np.asarray(pred, float), np.asarray(gt, float)
     if pred.shape != gt.shape or pred.shape[-1] != 3:
-        raise ValueError(f"pred and gt must both have shape (*, J, 3), got {pred.shape}, {gt.shape}")
+        raise ValueError(
+            f"pred and gt must both have shape (*, J, 3), got {pred.shape}, {gt.shape}"
+        )
     return np.linalg.norm(pred - gt, axis=-1)
 
 

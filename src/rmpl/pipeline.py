@@ -48,7 +48,13 @@ class RunConfig:
         one_euro_min_cutoff: one-euro minimum cut-off, Hz.
         one_euro_beta: one-euro speed coefficient (per m/s).
         hampel: remove outliers with a Hampel filter (window 7) before filling gaps.
+        hampel_min_deviation: a point is an outlier only if it is also this far (metres)
+            from the window's median, so smooth motion with tiny noise keeps its points.
         max_gap: fill gaps up to this many frames (Pose2Sim: 20); 0 disables.
+        min_score: triangulation ignores keypoints below this confidence (None: 0 for
+            "triangulate", 0.3 for "robust", as Pose2Sim).
+        max_error: "robust": reprojection error threshold, pixels (Pose2Sim: 15).
+        swap_check: "robust": test left/right swaps per view.
         track_distance: gate of the tracker, metres of mean joint distance.
         max_missed: frames a track survives without a match.
         association: cross-view association thresholds.
@@ -63,7 +69,11 @@ class RunConfig:
     one_euro_min_cutoff: float = 1.0
     one_euro_beta: float = 1.0
     hampel: bool = True
+    hampel_min_deviation: float = 0.03
     max_gap: int = 20
+    min_score: float | None = None
+    max_error: float = 15.0
+    swap_check: bool = True
     track_distance: float = 0.5
     max_missed: int = 10
     association: AssociationConfig = field(default_factory=AssociationConfig)
@@ -101,7 +111,11 @@ def associate_frames(
             seen = present[t, :, 0]
             members = np.where(seen, 0, -1)[None]
             if seen.sum() == 0:
-                out.append(Association(keypoints[t, :, 0][None][:0], scores[t, :, 0][None][:0], members[:0]))
+                out.append(
+                    Association(
+                        keypoints[t, :, 0][None][:0], scores[t, :, 0][None][:0], members[:0]
+                    )
+                )
             else:
                 out.append(Association(keypoints[t, :, 0][None], scores[t, :, 0][None], members))
         return out
@@ -128,16 +142,30 @@ def _estimator(config: RunConfig):
 
         lifter = Lifter.from_pretrained(config.model)
         up = None if config.up is None else np.asarray(config.up, float)
-        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(lifter.lift(kp, sc, rig, up=up))
+        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
+            lifter.lift(kp, sc, rig, up=up)
+        )
     if config.method == "robust":
-        return lambda kp, sc, rig: (
-            lambda r: (r.points, r.num_views)
-        )(triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs))
-    return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(triangulate(kp, sc, rig))
+        kwargs = {
+            "min_score": 0.3 if config.min_score is None else config.min_score,
+            "max_error": config.max_error,
+            "swap_pairs": COCO17.flip_pairs if config.swap_check else None,
+        }
+        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
+            triangulate_robust(kp, sc, rig, **kwargs)
+        )
+    min_score = config.min_score or 0.0
+    return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
+        triangulate(kp, sc, rig, min_score=min_score)
+    )
 
 
 def estimate(
-    people: list[Association], rig: Rig, config: RunConfig, chunk: int = 2048, progress: bool = False
+    people: list[Association],
+    rig: Rig,
+    config: RunConfig,
+    chunk: int = 2048,
+    progress: bool = False,
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """3D joints of every associated person, batched over frames.
 
@@ -206,7 +234,7 @@ def smooth(
 
     x = tracks
     if config.hampel and len(x) >= 7:
-        x = temporal.hampel(x, window=7)
+        x = temporal.hampel(x, window=7, min_deviation=config.hampel_min_deviation)
     interpolated = np.zeros(x.shape[:-1], bool)
     if config.max_gap > 0:
         x, interpolated = temporal.fill_gaps(x, max_gap=config.max_gap)
@@ -215,7 +243,9 @@ def smooth(
     elif config.filter == "butterworth" and fps is not None and config.cutoff < fps / 2:
         x = temporal.butterworth(x, fps, cutoff=config.cutoff, order=config.order)
     elif config.filter == "one-euro" and fps is not None:
-        x = temporal.one_euro(x, fps, min_cutoff=config.one_euro_min_cutoff, beta=config.one_euro_beta)
+        x = temporal.one_euro(
+            x, fps, min_cutoff=config.one_euro_min_cutoff, beta=config.one_euro_beta
+        )
     return x, interpolated & np.isfinite(x).all(-1)
 
 
@@ -242,11 +272,9 @@ def run(
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
     pts, nv = estimate(people, rig, cfg, progress=progress)
     tracks, views, ids = track_people(pts, nv, cfg)
-    raw_ok = np.isfinite(tracks).all(-1)
-    interpolated = np.zeros(raw_ok.shape, bool)
+    interpolated = np.zeros(tracks.shape[:-1], bool)
     if temporal:
         tracks, interpolated = smooth(tracks, fps, cfg)
-        interpolated &= ~raw_ok
     ok = np.isfinite(tracks).all(-1)
     source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))

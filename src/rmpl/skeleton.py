@@ -74,7 +74,7 @@ def _pairs(joints: tuple[str, ...], prefix_l: str = "left_", prefix_r: str = "ri
     out = []
     for i, n in enumerate(joints):
         if n.startswith(prefix_l):
-            j = joints.index(prefix_r + n[len(prefix_l):])
+            j = joints.index(prefix_r + n[len(prefix_l) :])
             out.append((i, j))
     return tuple(out)
 
@@ -84,106 +84,247 @@ def _bones(joints: tuple[str, ...], names: list[tuple[str, str]]):
 
 
 _COCO_NAMES = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear",
-    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow",
-    "left_wrist", "right_wrist", "left_hip", "right_hip",
-    "left_knee", "right_knee", "left_ankle", "right_ankle",
-)  # fmt: skip
+    "nose",
+    "left_eye",
+    "right_eye",
+    "left_ear",
+    "right_ear",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+)
 COCO17 = Skeleton(
     "coco17",
     _COCO_NAMES,
-    _bones(_COCO_NAMES, [
-        ("left_ankle", "left_knee"), ("left_knee", "left_hip"),
-        ("right_ankle", "right_knee"), ("right_knee", "right_hip"),
-        ("left_hip", "right_hip"), ("left_shoulder", "left_hip"),
-        ("right_shoulder", "right_hip"), ("left_shoulder", "right_shoulder"),
-        ("left_shoulder", "left_elbow"), ("right_shoulder", "right_elbow"),
-        ("left_elbow", "left_wrist"), ("right_elbow", "right_wrist"),
-        ("left_eye", "right_eye"), ("nose", "left_eye"), ("nose", "right_eye"),
-        ("left_eye", "left_ear"), ("right_eye", "right_ear"),
-        ("left_ear", "left_shoulder"), ("right_ear", "right_shoulder"),
-    ]),  # fmt: skip
+    _bones(
+        _COCO_NAMES,
+        [
+            ("left_ankle", "left_knee"),
+            ("left_knee", "left_hip"),
+            ("right_ankle", "right_knee"),
+            ("right_knee", "right_hip"),
+            ("left_hip", "right_hip"),
+            ("left_shoulder", "left_hip"),
+            ("right_shoulder", "right_hip"),
+            ("left_shoulder", "right_shoulder"),
+            ("left_shoulder", "left_elbow"),
+            ("right_shoulder", "right_elbow"),
+            ("left_elbow", "left_wrist"),
+            ("right_elbow", "right_wrist"),
+            ("left_eye", "right_eye"),
+            ("nose", "left_eye"),
+            ("nose", "right_eye"),
+            ("left_eye", "left_ear"),
+            ("right_eye", "right_ear"),
+            ("left_ear", "left_shoulder"),
+            ("right_ear", "right_shoulder"),
+        ],
+    ),
     _pairs(_COCO_NAMES),
 )
 
 _H36M_NAMES = (
-    "pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee",
-    "left_ankle", "torso", "neck", "nose", "head", "left_shoulder", "left_elbow",
-    "left_wrist", "right_shoulder", "right_elbow", "right_wrist",
-)  # fmt: skip
+    "pelvis",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "torso",
+    "neck",
+    "nose",
+    "head",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+)
 H36M17 = Skeleton(
     "h36m17",
     _H36M_NAMES,
-    _bones(_H36M_NAMES, [
-        ("pelvis", "right_hip"), ("right_hip", "right_knee"), ("right_knee", "right_ankle"),
-        ("pelvis", "left_hip"), ("left_hip", "left_knee"), ("left_knee", "left_ankle"),
-        ("pelvis", "torso"), ("torso", "neck"), ("neck", "nose"), ("nose", "head"),
-        ("neck", "left_shoulder"), ("left_shoulder", "left_elbow"),
-        ("left_elbow", "left_wrist"), ("neck", "right_shoulder"),
-        ("right_shoulder", "right_elbow"), ("right_elbow", "right_wrist"),
-    ]),  # fmt: skip
+    _bones(
+        _H36M_NAMES,
+        [
+            ("pelvis", "right_hip"),
+            ("right_hip", "right_knee"),
+            ("right_knee", "right_ankle"),
+            ("pelvis", "left_hip"),
+            ("left_hip", "left_knee"),
+            ("left_knee", "left_ankle"),
+            ("pelvis", "torso"),
+            ("torso", "neck"),
+            ("neck", "nose"),
+            ("nose", "head"),
+            ("neck", "left_shoulder"),
+            ("left_shoulder", "left_elbow"),
+            ("left_elbow", "left_wrist"),
+            ("neck", "right_shoulder"),
+            ("right_shoulder", "right_elbow"),
+            ("right_elbow", "right_wrist"),
+        ],
+    ),
     _pairs(_H36M_NAMES),
 )
 
 _SHELF_NAMES = (
-    "right_ankle", "right_knee", "right_hip", "left_hip", "left_knee", "left_ankle",
-    "right_wrist", "right_elbow", "right_shoulder", "left_shoulder", "left_elbow",
-    "left_wrist", "neck", "head_top",
-)  # fmt: skip
+    "right_ankle",
+    "right_knee",
+    "right_hip",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "right_wrist",
+    "right_elbow",
+    "right_shoulder",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "neck",
+    "head_top",
+)
 SHELF14 = Skeleton(
     "shelf14",
     _SHELF_NAMES,
     # The ten parts scored by PCP on Shelf/Campus, in the customary order.
-    _bones(_SHELF_NAMES, [
-        ("head_top", "neck"), ("right_shoulder", "right_elbow"),
-        ("right_elbow", "right_wrist"), ("left_shoulder", "left_elbow"),
-        ("left_elbow", "left_wrist"), ("right_hip", "right_knee"),
-        ("right_knee", "right_ankle"), ("left_hip", "left_knee"),
-        ("left_knee", "left_ankle"), ("neck", "right_hip"), ("neck", "left_hip"),
-    ]),  # fmt: skip
+    _bones(
+        _SHELF_NAMES,
+        [
+            ("head_top", "neck"),
+            ("right_shoulder", "right_elbow"),
+            ("right_elbow", "right_wrist"),
+            ("left_shoulder", "left_elbow"),
+            ("left_elbow", "left_wrist"),
+            ("right_hip", "right_knee"),
+            ("right_knee", "right_ankle"),
+            ("left_hip", "left_knee"),
+            ("left_knee", "left_ankle"),
+            ("neck", "right_hip"),
+            ("neck", "left_hip"),
+        ],
+    ),
     _pairs(_SHELF_NAMES),
 )
 
 _BODY25_NAMES = (
-    "nose", "neck", "right_shoulder", "right_elbow", "right_wrist", "left_shoulder",
-    "left_elbow", "left_wrist", "mid_hip", "right_hip", "right_knee", "right_ankle",
-    "left_hip", "left_knee", "left_ankle", "right_eye", "left_eye", "right_ear",
-    "left_ear", "left_big_toe", "left_small_toe", "left_heel", "right_big_toe",
-    "right_small_toe", "right_heel",
-)  # fmt: skip
+    "nose",
+    "neck",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "mid_hip",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "right_eye",
+    "left_eye",
+    "right_ear",
+    "left_ear",
+    "left_big_toe",
+    "left_small_toe",
+    "left_heel",
+    "right_big_toe",
+    "right_small_toe",
+    "right_heel",
+)
 BODY25 = Skeleton(
     "body25",
     _BODY25_NAMES,
-    _bones(_BODY25_NAMES, [
-        ("neck", "mid_hip"), ("neck", "right_shoulder"), ("right_shoulder", "right_elbow"),
-        ("right_elbow", "right_wrist"), ("neck", "left_shoulder"),
-        ("left_shoulder", "left_elbow"), ("left_elbow", "left_wrist"),
-        ("mid_hip", "right_hip"), ("right_hip", "right_knee"), ("right_knee", "right_ankle"),
-        ("mid_hip", "left_hip"), ("left_hip", "left_knee"), ("left_knee", "left_ankle"),
-        ("neck", "nose"), ("nose", "right_eye"), ("nose", "left_eye"),
-        ("right_eye", "right_ear"), ("left_eye", "left_ear"),
-        ("left_ankle", "left_big_toe"), ("left_ankle", "left_heel"),
-        ("right_ankle", "right_big_toe"), ("right_ankle", "right_heel"),
-    ]),  # fmt: skip
+    _bones(
+        _BODY25_NAMES,
+        [
+            ("neck", "mid_hip"),
+            ("neck", "right_shoulder"),
+            ("right_shoulder", "right_elbow"),
+            ("right_elbow", "right_wrist"),
+            ("neck", "left_shoulder"),
+            ("left_shoulder", "left_elbow"),
+            ("left_elbow", "left_wrist"),
+            ("mid_hip", "right_hip"),
+            ("right_hip", "right_knee"),
+            ("right_knee", "right_ankle"),
+            ("mid_hip", "left_hip"),
+            ("left_hip", "left_knee"),
+            ("left_knee", "left_ankle"),
+            ("neck", "nose"),
+            ("nose", "right_eye"),
+            ("nose", "left_eye"),
+            ("right_eye", "right_ear"),
+            ("left_eye", "left_ear"),
+            ("left_ankle", "left_big_toe"),
+            ("left_ankle", "left_heel"),
+            ("right_ankle", "right_big_toe"),
+            ("right_ankle", "right_heel"),
+        ],
+    ),
     _pairs(_BODY25_NAMES),
 )
 
 # OpenPose BODY_25B (the Pose2Sim default): COCO-17 order first, then neck/head and feet.
 _BODY25B_NAMES = _COCO_NAMES + (
-    "neck", "head_top", "left_big_toe", "left_small_toe", "left_heel",
-    "right_big_toe", "right_small_toe", "right_heel",
-)  # fmt: skip
+    "neck",
+    "head_top",
+    "left_big_toe",
+    "left_small_toe",
+    "left_heel",
+    "right_big_toe",
+    "right_small_toe",
+    "right_heel",
+)
 BODY25B = Skeleton("body25b", _BODY25B_NAMES, COCO17.bones, _pairs(_BODY25B_NAMES))
 
 _BLAZE_NAMES = (
-    "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner",
-    "right_eye", "right_eye_outer", "left_ear", "right_ear", "mouth_left", "mouth_right",
-    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist",
-    "right_wrist", "left_pinky", "right_pinky", "left_index", "right_index",
-    "left_thumb", "right_thumb", "left_hip", "right_hip", "left_knee", "right_knee",
-    "left_ankle", "right_ankle", "left_heel", "right_heel", "left_foot_index",
+    "nose",
+    "left_eye_inner",
+    "left_eye",
+    "left_eye_outer",
+    "right_eye_inner",
+    "right_eye",
+    "right_eye_outer",
+    "left_ear",
+    "right_ear",
+    "mouth_left",
+    "mouth_right",
+    "left_shoulder",
+    "right_shoulder",
+    "left_elbow",
+    "right_elbow",
+    "left_wrist",
+    "right_wrist",
+    "left_pinky",
+    "right_pinky",
+    "left_index",
+    "right_index",
+    "left_thumb",
+    "right_thumb",
+    "left_hip",
+    "right_hip",
+    "left_knee",
+    "right_knee",
+    "left_ankle",
+    "right_ankle",
+    "left_heel",
+    "right_heel",
+    "left_foot_index",
     "right_foot_index",
-)  # fmt: skip
+)
 BLAZEPOSE33 = Skeleton("blazepose33", _BLAZE_NAMES, (), _pairs(_BLAZE_NAMES))
 
 SKELETONS: dict[str, Skeleton] = {
@@ -216,24 +357,40 @@ _HEAD = {"left_eye": 0.25, "right_eye": 0.25, "left_ear": 0.25, "right_ear": 0.2
 _CONVERSIONS: dict[tuple[str, str], np.ndarray] = {
     # Thesis 6.2.1: head = mean(eyes, ears), pelvis = mean(hips), neck = mean(shoulders),
     # torso = mean(neck, pelvis).
-    ("coco17", "h36m17"): _by_name(COCO17, H36M17, {
-        "pelvis": _MID_HIP,
-        "neck": _MID_SHOULDER,
-        "torso": {k: v / 2 for k, v in (_MID_HIP | _MID_SHOULDER).items()},
-        "head": _HEAD,
-    }),
+    ("coco17", "h36m17"): _by_name(
+        COCO17,
+        H36M17,
+        {
+            "pelvis": _MID_HIP,
+            "neck": _MID_SHOULDER,
+            "torso": {k: v / 2 for k, v in (_MID_HIP | _MID_SHOULDER).items()},
+            "head": _HEAD,
+        },
+    ),
     # Shelf neck = "bottom of head": between the shoulders' midpoint and the ears.
     # Head top: the ear midpoint pushed up by the ear-to-shoulder-midpoint offset.
-    ("coco17", "shelf14"): _by_name(COCO17, SHELF14, {
-        "neck": {"left_shoulder": 0.35, "right_shoulder": 0.35,
-                 "left_ear": 0.15, "right_ear": 0.15},
-        "head_top": {"left_ear": 1.0, "right_ear": 1.0,
-                     "left_shoulder": -0.5, "right_shoulder": -0.5},
-    }),
+    ("coco17", "shelf14"): _by_name(
+        COCO17,
+        SHELF14,
+        {
+            "neck": {
+                "left_shoulder": 0.35,
+                "right_shoulder": 0.35,
+                "left_ear": 0.15,
+                "right_ear": 0.15,
+            },
+            "head_top": {
+                "left_ear": 1.0,
+                "right_ear": 1.0,
+                "left_shoulder": -0.5,
+                "right_shoulder": -0.5,
+            },
+        },
+    ),
     ("body25", "coco17"): _by_name(BODY25, COCO17, {}),
     ("body25b", "coco17"): _by_name(BODY25B, COCO17, {}),
     ("blazepose33", "coco17"): _by_name(BLAZEPOSE33, COCO17, {}),
-}  # fmt: skip
+}
 
 
 def conversion_matrix(src: str | Skeleton, dst: str | Skeleton) -> np.ndarray:
@@ -273,8 +430,7 @@ def convert(points: np.ndarray, src: str | Skeleton, dst: str | Skeleton) -> np.
     points = np.asarray(points, dtype=float)
     if points.shape[-2] != W.shape[1]:
         raise ValueError(
-            f"points must have {W.shape[1]} joints on axis -2 for {src!r}, "
-            f"got shape {points.shape}"
+            f"points must have {W.shape[1]} joints on axis -2 for {src!r}, got shape {points.shape}"
         )
     used = W != 0
     nan = np.isnan(points).any(axis=-1)  # (*, J_src)

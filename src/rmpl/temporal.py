@@ -43,8 +43,9 @@ def _check_points(points, field: str = "points") -> np.ndarray:
     try:
         x = np.array(points, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(None, field, "a numeric array of shape (T, *, C)",
-                         type(points).__name__) from None  # fmt: skip
+        raise InputError(
+            None, field, "a numeric array of shape (T, *, C)", type(points).__name__
+        ) from None
     if x.ndim < 2:
         raise InputError(None, field, "shape (T, *, C), e.g. (T, P, J, 3)", x.shape)
     if np.isinf(x).any():
@@ -80,8 +81,9 @@ def finite_runs(ok: np.ndarray) -> list[tuple[int, int]]:
     [(1, 3), (4, 5)]
     """
     edges = np.diff(np.concatenate([[0], np.asarray(ok, np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(),
-                    strict=True))  # fmt: skip
+    return list(
+        zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True)
+    )
 
 
 # --------------------------------------------------------------------------- gaps
@@ -172,8 +174,9 @@ def _per_run(x: np.ndarray, fn) -> np.ndarray:
 def _check_cutoff(fps: float, cutoff: float, field: str = "cutoff") -> tuple[float, float]:
     fps, cutoff = _positive(fps, "fps"), _positive(cutoff, field)
     if cutoff >= fps / 2:
-        raise InputError(None, field, f"a frequency below Nyquist, fps / 2 = {fps / 2:g} Hz",
-                         cutoff)  # fmt: skip
+        raise InputError(
+            None, field, f"a frequency below Nyquist, fps / 2 = {fps / 2:g} Hz", cutoff
+        )
     return fps, cutoff
 
 

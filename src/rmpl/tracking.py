@@ -53,20 +53,24 @@ def _check_frames(poses_per_frame) -> list[np.ndarray]:
     if isinstance(poses_per_frame, np.ndarray) and poses_per_frame.ndim == 4:
         poses_per_frame = list(poses_per_frame)  # (T, N, J, 3): N slots per frame
     if not isinstance(poses_per_frame, Sequence) or len(poses_per_frame) == 0:
-        raise InputError(None, "poses_per_frame", "a non-empty list of (N, J, 3) arrays",
-                         type(poses_per_frame).__name__)  # fmt: skip
+        raise InputError(
+            None,
+            "poses_per_frame",
+            "a non-empty list of (N, J, 3) arrays",
+            type(poses_per_frame).__name__,
+        )
     frames, joints = [], None
     for t, people in enumerate(poses_per_frame):
         field_name = f"poses_per_frame[{t}]"
         try:
             x = np.asarray(people, dtype=float)
         except (TypeError, ValueError):
-            raise InputError(None, field_name, "an (N, J, 3) array",
-                             type(people).__name__) from None  # fmt: skip
+            raise InputError(
+                None, field_name, "an (N, J, 3) array", type(people).__name__
+            ) from None
         if x.ndim != 3 or x.shape[-1] != 3 or (joints is not None and x.shape[1] != joints):
             want = f"(N, {joints if joints is not None else 'J'}, 3)"
-            raise InputError(None, field_name, f"shape {want}, the same J in every frame",
-                             x.shape)  # fmt: skip
+            raise InputError(None, field_name, f"shape {want}, the same J in every frame", x.shape)
         if np.isinf(x).any():
             raise InputError(None, field_name, "finite coordinates or NaN for missing", "inf")
         joints = x.shape[1]
@@ -89,8 +93,11 @@ def _match(cost: np.ndarray, max_distance: float) -> list[tuple[int, int]]:
     if cost.size == 0:
         return []
     rows, cols = linear_sum_assignment(np.where(cost <= max_distance, cost, _REFUSED))
-    return [(r, c) for r, c in zip(rows.tolist(), cols.tolist(), strict=True)
-            if cost[r, c] <= max_distance]  # fmt: skip
+    return [
+        (r, c)
+        for r, c in zip(rows.tolist(), cols.tolist(), strict=True)
+        if cost[r, c] <= max_distance
+    ]
 
 
 def track_indices(
@@ -138,8 +145,11 @@ def track_indices(
         for r, c in matches:
             active[r].update(people[real[c]], t, int(real[c]))
         taken = {c for _, c in matches}
-        new = [_Track(people[i].copy(), t, detections={t: int(i)})
-               for k, i in enumerate(real.tolist()) if k not in taken]  # fmt: skip
+        new = [
+            _Track(people[i].copy(), t, detections={t: int(i)})
+            for k, i in enumerate(real.tolist())
+            if k not in taken
+        ]
         still = [tr for tr in active if t - tr.last_frame <= max_missed]
         done += [tr for tr in active if t - tr.last_frame > max_missed]
         active = still + new

@@ -49,6 +49,8 @@ class TrainConfig:
         weight_decay: Adam weight decay.
         min_views, max_views: each batch has a number of views drawn in this range.
         single_view_rate: probability of a one-view batch (when min_views is 1).
+        single_view_weight: loss weight of one-view batches. Their depth is ambiguous and
+            their error ~20x larger; at full weight they swamp the multi-view signal.
         val_every: steps between validations and checkpoints.
         val_size: samples per validation view count.
         seed: random seed.
@@ -69,6 +71,7 @@ class TrainConfig:
     min_views: int = 1
     max_views: int = 5
     single_view_rate: float = 0.1
+    single_view_weight: float = 0.1
     val_every: int = 500
     val_size: int = 512
     seed: int = 0
@@ -82,7 +85,9 @@ class TrainConfig:
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
-            raise ValueError(f"unknown training config keys {sorted(unknown)}; known: {sorted(known)}")
+            raise ValueError(
+                f"unknown training config keys {sorted(unknown)}; known: {sorted(known)}"
+            )
         d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
         cfg = cls(**d)
         if cfg.preset not in PRESETS:
@@ -91,7 +96,9 @@ class TrainConfig:
         SamplerConfig(**cfg.sampler)
         NoiseConfig.from_dict(cfg.noise)
         if not 1 <= cfg.min_views <= cfg.max_views:
-            raise ValueError(f"need 1 <= min_views <= max_views, got {cfg.min_views}, {cfg.max_views}")
+            raise ValueError(
+                f"need 1 <= min_views <= max_views, got {cfg.min_views}, {cfg.max_views}"
+            )
         return cfg
 
     @classmethod
@@ -145,7 +152,9 @@ def load_checkpoint(path: str | Path) -> tuple[RMPL, dict]:
     cfg_file, weights = path / "config.json", path / "model.safetensors"
     for f in (cfg_file, weights):
         if not f.is_file():
-            raise FileNotFoundError(f"{f}: checkpoint file missing (expected config.json + model.safetensors)")
+            raise FileNotFoundError(
+                f"{f}: checkpoint file missing (expected config.json + model.safetensors)"
+            )
     meta = json.loads(cfg_file.read_text())
     if "model" not in meta:
         raise ValueError(f"{cfg_file}: field 'model' missing; not an rmpl checkpoint")
@@ -168,7 +177,9 @@ def _triangulation_mpjpe(batch) -> float:
     from rmpl.geometry.rays import pixel_to_normalized
 
     ok = batch.scores > 0
-    xy = pixel_to_normalized(np.where(ok[..., None], batch.keypoints, 0.0), batch.K[:, :, None], None)
+    xy = pixel_to_normalized(
+        np.where(ok[..., None], batch.keypoints, 0.0), batch.K[:, :, None], None
+    )
     P = np.concatenate([batch.R, batch.t[..., None]], -1)
     X = _dlt(xy, P, np.where(ok, batch.scores, 0.0))
     e = np.linalg.norm(X - batch.target, axis=-1)[:, list(KP_STAR)]
@@ -199,7 +210,9 @@ def _lr_at(step: int, cfg: TrainConfig) -> float:
     return cfg.lr * f
 
 
-def train(cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val: np.ndarray) -> Path:
+def train(
+    cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val: np.ndarray
+) -> Path:
     """Train (or resume) a model into directory ``out``; returns ``out``."""
     from tqdm import tqdm
 
@@ -247,28 +260,44 @@ def train(cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val:
         if not torch.isfinite(loss):
             raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
         opt.zero_grad(set_to_none=True)
-        loss.backward()
+        (loss * (cfg.single_view_weight if V == 1 else 1.0)).backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
         opt.step()
         step += 1
-        running = loss.item() if running is None else 0.98 * running + 0.02 * loss.item()
+        if V > 1:  # the running loss follows the multi-view batches
+            running = loss.item() if running is None else 0.98 * running + 0.02 * loss.item()
         bar.update(1)
-        bar.set_postfix(loss_mm=f"{running * 1000:.1f}", V=V)
+        if running is not None:
+            bar.set_postfix(loss_mm=f"{running * 1000:.1f}", V=V)
         over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
         if step % cfg.val_every == 0 or step == cfg.steps or over_time:
             metrics = evaluate_batches(model, sets)
             now = elapsed + time.time() - t_start
-            record = {"step": step, "seconds": round(now, 1), "train_loss_mm": running * 1000,
-                      **metrics, **tri}  # fmt: skip
+            record = {
+                "step": step,
+                "seconds": round(now, 1),
+                "train_loss_mm": (running or math.nan) * 1000,
+                **metrics,
+                **tri,
+            }
             with open(out / "log.jsonl", "a") as f:
                 f.write(json.dumps(record) + "\n")
             bar.write(
-                f"step {step}: " + " ".join(f"{k}={v:.1f}" for k, v in metrics.items() if "kpstar" in k)
+                f"step {step}: "
+                + " ".join(f"{k}={v:.1f}" for k, v in metrics.items() if "kpstar" in k)
             )
             save_checkpoint(model, out, {"training": {**summary, "last": record}})
             with atomic_path(state_file) as tmp:
-                torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(),
-                            "step": step, "elapsed": now, "rng": src.rng.bit_generator.state}, tmp)  # fmt: skip
+                torch.save(
+                    {
+                        "model": model.state_dict(),
+                        "optimizer": opt.state_dict(),
+                        "step": step,
+                        "elapsed": now,
+                        "rng": src.rng.bit_generator.state,
+                    },
+                    tmp,
+                )
             if over_time:
                 log.info("time limit reached at step %d; run again to resume", step)
                 break

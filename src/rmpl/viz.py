@@ -17,8 +17,10 @@ _COLORS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:
 
 def _bone_color(skeleton: Skeleton, a: int, b: int) -> str:
     names = skeleton.joints[a] + skeleton.joints[b]
-    return "tab:red" if "left" in names and "right" not in names else (
-        "tab:blue" if "right" in names and "left" not in names else "0.3"
+    return (
+        "tab:red"
+        if "left" in names and "right" not in names
+        else ("tab:blue" if "right" in names and "left" not in names else "0.3")
     )
 
 
@@ -70,7 +72,11 @@ def plot_skeletons(
     for k, t in enumerate(frames):
         ax = fig.add_subplot(1, panels, k + 1 + (rig is not None), projection="3d")
         mid = np.nanmean(P[t], axis=(0, 1)) if np.isfinite(P[t]).any() else centre
-        half = max(half, float(np.nanmax(np.abs(P[t] - mid))) + 0.1) if np.isfinite(P[t]).any() else half
+        half = (
+            max(half, float(np.nanmax(np.abs(P[t] - mid))) + 0.1)
+            if np.isfinite(P[t]).any()
+            else half
+        )
         for p in range(P.shape[1]):
             for a, b in skeleton.bones:
                 if ref is not None:

@@ -46,8 +46,15 @@ def tiny_model(tmp_path):
 def test_triangulate_writes_every_format(tmp_path, suffix):
     X = make_scene(tmp_path)
     out = tmp_path / f"out{suffix}"
-    args = ["triangulate", "--calib", str(tmp_path / "calib.toml"),
-            "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]  # fmt: skip
+    args = [
+        "triangulate",
+        "--calib",
+        str(tmp_path / "calib.toml"),
+        "--keypoints",
+        str(tmp_path / "kp.json"),
+        "--out",
+        str(out),
+    ]
     assert main(args) == 0
     assert out.is_file()
     if suffix in (".npz", ".json", ".trc"):
@@ -58,16 +65,43 @@ def test_triangulate_writes_every_format(tmp_path, suffix):
 def test_triangulate_robust(tmp_path):
     X = make_scene(tmp_path, views=4)
     out = tmp_path / "out.npz"
-    assert main(["triangulate", "--robust", "--calib", str(tmp_path / "calib.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "triangulate",
+                "--robust",
+                "--calib",
+                str(tmp_path / "calib.toml"),
+                "--keypoints",
+                str(tmp_path / "kp.json"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     assert np.allclose(load_poses(out).points[:, 0], X, atol=1e-4)
 
 
 def test_lift_with_a_checkpoint(tmp_path, tiny_model):
     make_scene(tmp_path)
     out = tmp_path / "lifted.json"
-    assert main(["lift", "--model", tiny_model, "--calib", str(tmp_path / "calib.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "lift",
+                "--model",
+                tiny_model,
+                "--calib",
+                str(tmp_path / "calib.toml"),
+                "--keypoints",
+                str(tmp_path / "kp.json"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     doc = json.loads(out.read_text())
     poses = load_poses(out)
     assert poses.points.shape == (6, 1, 17, 3)
@@ -83,8 +117,17 @@ def test_views_not_matching_calibration_fail_cleanly(tmp_path, tiny_model, capsy
     make_scene(other, views=2)
     out = tmp_path / "x.npz"
     for cmd in (["lift", "--model", tiny_model], ["triangulate"]):
-        code = main([*cmd, "--calib", str(other / "calib.toml"),
-                     "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)])  # fmt: skip
+        code = main(
+            [
+                *cmd,
+                "--calib",
+                str(other / "calib.toml"),
+                "--keypoints",
+                str(tmp_path / "kp.json"),
+                "--out",
+                str(out),
+            ]
+        )
         assert code == 2
         err = capsys.readouterr().err
         assert "views" in err and "calib.toml" in err
@@ -98,8 +141,19 @@ def test_all_zero_confidence_is_an_error(tmp_path, tiny_model, capsys):
     kp["keypoints"] = np.full(np.shape(kp["keypoints"]), np.nan).tolist()
     (tmp_path / "kp.json").write_text(json.dumps(kp).replace("NaN", "null"))
     out = tmp_path / "x.npz"
-    code = main(["lift", "--model", tiny_model, "--calib", str(tmp_path / "calib.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(out)])  # fmt: skip
+    code = main(
+        [
+            "lift",
+            "--model",
+            tiny_model,
+            "--calib",
+            str(tmp_path / "calib.toml"),
+            "--keypoints",
+            str(tmp_path / "kp.json"),
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 2
     assert "scores" in capsys.readouterr().err
     assert not out.exists()
@@ -107,23 +161,52 @@ def test_all_zero_confidence_is_an_error(tmp_path, tiny_model, capsys):
 
 def test_bad_output_suffix(tmp_path, capsys):
     make_scene(tmp_path)
-    code = main(["triangulate", "--calib", str(tmp_path / "calib.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.xlsx")])  # fmt: skip
+    code = main(
+        [
+            "triangulate",
+            "--calib",
+            str(tmp_path / "calib.toml"),
+            "--keypoints",
+            str(tmp_path / "kp.json"),
+            "--out",
+            str(tmp_path / "x.xlsx"),
+        ]
+    )
     assert code == 2
     assert ".trc" in capsys.readouterr().err
 
 
 def test_missing_calibration_file(tmp_path, capsys):
     make_scene(tmp_path)
-    code = main(["triangulate", "--calib", str(tmp_path / "nope.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.npz")])  # fmt: skip
+    code = main(
+        [
+            "triangulate",
+            "--calib",
+            str(tmp_path / "nope.toml"),
+            "--keypoints",
+            str(tmp_path / "kp.json"),
+            "--out",
+            str(tmp_path / "x.npz"),
+        ]
+    )
     assert code == 2
     assert "nope.toml" in capsys.readouterr().err
 
 
 def test_unknown_model_name(tmp_path, capsys):
     make_scene(tmp_path)
-    code = main(["lift", "--model", "no-such-model", "--calib", str(tmp_path / "calib.toml"),
-                 "--keypoints", str(tmp_path / "kp.json"), "--out", str(tmp_path / "x.npz")])  # fmt: skip
+    code = main(
+        [
+            "lift",
+            "--model",
+            "no-such-model",
+            "--calib",
+            str(tmp_path / "calib.toml"),
+            "--keypoints",
+            str(tmp_path / "kp.json"),
+            "--out",
+            str(tmp_path / "x.npz"),
+        ]
+    )
     assert code == 2
     assert "no-such-model" in capsys.readouterr().err

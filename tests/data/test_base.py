@@ -31,8 +31,9 @@ def _dataset(T=3, P=2, skeleton="coco17", size=(640, 480), **kw) -> MultiViewDat
     J = 17
     gt = rng.uniform(-0.3, 0.3, (T, P, J, 3)) + np.array([0, 0, 1.0])
     gt[1, 1] = np.nan
-    return MultiViewDataset(_rig(size), np.arange(10, 10 + T), gt, skeleton, None, None,
-                            "toy", **kw)  # fmt: skip
+    return MultiViewDataset(
+        _rig(size), np.arange(10, 10 + T), gt, skeleton, None, None, "toy", **kw
+    )
 
 
 def test_validation_names_the_field():
@@ -80,8 +81,9 @@ def test_projection_noise_outside_and_behind():
     behind = _dataset()
     gt = behind.gt.copy()
     gt[0, 0] = [0.0, -10.0, 1.0]  # behind both cameras (they stand at y = -4, look to +y)
-    k = keypoints_from_projection(MultiViewDataset(behind.rig, behind.frames, gt, "coco17",
-                                                   None, None, "b"))  # fmt: skip
+    k = keypoints_from_projection(
+        MultiViewDataset(behind.rig, behind.frames, gt, "coco17", None, None, "b")
+    )
     assert np.all(k.scores[0, :, 0] == 0) and np.isnan(k.keypoints[0, :, 0]).all()
 
 
@@ -91,8 +93,9 @@ def test_projection_maps_other_joint_sets_by_name():
     idx = coco17_by_name(H36M17)
     assert np.all(k.scores[0][..., idx < 0] == 0)  # eyes, ears
     j = COCO17.index("left_knee")
-    np.testing.assert_allclose(k.keypoints[0, 1, 0, j],
-                               d.rig[1].project(d.gt[0, 0, H36M17.index("left_knee")]))  # fmt: skip
+    np.testing.assert_allclose(
+        k.keypoints[0, 1, 0, j], d.rig[1].project(d.gt[0, 0, H36M17.index("left_knee")])
+    )
 
 
 def test_attach_keypoints_by_frame_and_view_name():

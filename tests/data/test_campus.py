@@ -37,9 +37,16 @@ def _write_folder(root, rng, num_views=3, name="campus"):
     for v in range(num_views):
         a = 2 * np.pi * v / num_views
         R, t = look_at(np.array([5 * np.cos(a), 5 * np.sin(a), 2.5]), np.array([0, 0, 1.0]))
-        cams[str(v)] = {"R": R.tolist(), "T": (-R.T @ t * 1000)[:, None].tolist(),
-                        "fx": 400.0, "fy": 410.0, "cx": 180.0, "cy": 144.0,
-                        "k": [[0.0], [0.0], [0.0]], "p": [[0.0], [0.0]]}  # fmt: skip
+        cams[str(v)] = {
+            "R": R.tolist(),
+            "T": (-R.T @ t * 1000)[:, None].tolist(),
+            "fx": 400.0,
+            "fy": 410.0,
+            "cx": 180.0,
+            "cy": 144.0,
+            "k": [[0.0], [0.0], [0.0]],
+            "p": [[0.0], [0.0]],
+        }
     (root / f"calibration_{name}.json").write_text(json.dumps(cams))
     T, P = 4, 2
     gt = rng.uniform(-0.5, 0.5, (T, P, 14, 3)) + np.array([0, 0, 1.0])
@@ -47,8 +54,9 @@ def _write_folder(root, rng, num_views=3, name="campus"):
     actor2d = np.empty((1, P), dtype=object)
     for p in range(P):
         present = [not (p == 1 and t == 2) for t in range(T)]
-        actor3d[0, p] = _cells([gt[t, p] if ok else np.zeros((1, 0)) for t, ok in
-                                enumerate(present)])  # fmt: skip
+        actor3d[0, p] = _cells(
+            [gt[t, p] if ok else np.zeros((1, 0)) for t, ok in enumerate(present)]
+        )
         views = []
         for ok in present:
             c = np.empty((1, num_views), dtype=object)
@@ -85,8 +93,9 @@ def test_synthetic_folder_shapes_and_units(folder):
     root, gt, coco = folder
     data = load_campus_layout(root, "campus")
     assert isinstance(data, MultiViewDataset) and data.name == "campus"
-    assert data.rig.names == ["0", "1", "2"] and all(c.size == IMAGE_SIZES["campus"]
-                                                     for c in data.rig)  # fmt: skip
+    assert data.rig.names == ["0", "1", "2"] and all(
+        c.size == IMAGE_SIZES["campus"] for c in data.rig
+    )
     assert data.frames.tolist() == [0, 1, 2, 3] and data.gt_skeleton == "shelf14"
     np.testing.assert_allclose(data.gt, gt, atol=1e-9)  # metres in, metres out
     assert np.isnan(data.gt[2, 1]).all() and not np.isnan(data.gt[2, 0]).any()
@@ -237,8 +246,9 @@ def test_fixture_hrnet_predictions(real):
 def test_load_hrnet_predictions_keeps_only_requested_frames(folder):
     root, _, coco = folder
     data = load_campus_layout(root, "campus", frames=[0])
-    kp, sc = load_hrnet_predictions(root / "pred_campus_maskrcnn_hrnet_coco.pkl",
-                                    data.rig, np.array([1]))  # fmt: skip
+    kp, sc = load_hrnet_predictions(
+        root / "pred_campus_maskrcnn_hrnet_coco.pkl", data.rig, np.array([1])
+    )
     assert kp.shape == (1, 3, 2, 17, 2)
     np.testing.assert_allclose(kp[0, 2, 0], coco[1, 2, 1], atol=1e-9)
     # The limb joints, and only those, have a Shelf counterpart.

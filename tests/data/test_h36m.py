@@ -30,10 +30,18 @@ def _cameras(subject_shift: float) -> list[Camera]:
 
 def _pkl_entry(c: Camera) -> dict:
     """mmpose's cameras.pkl entry: R camera->world, T the centre in metres, columns."""
-    return {"R": c.R.T, "T": c.center[:, None], "f": c.K[[0, 1], [0, 1]][:, None],
-            "c": c.K[:2, 2][:, None], "k": c.dist[[0, 1, 4]][:, None],
-            "p": c.dist[2:4][:, None], "w": c.size[0], "h": c.size[1], "name": "cam",
-            "id": c.name}  # fmt: skip
+    return {
+        "R": c.R.T,
+        "T": c.center[:, None],
+        "f": c.K[[0, 1], [0, 1]][:, None],
+        "c": c.K[:2, 2][:, None],
+        "k": c.dist[[0, 1, 4]][:, None],
+        "p": c.dist[2:4][:, None],
+        "w": c.size[0],
+        "h": c.size[1],
+        "name": "cam",
+        "id": c.name,
+    }
 
 
 @pytest.fixture
@@ -43,8 +51,12 @@ def folder(tmp_path):
     cams = {"S9": _cameras(0.0), "S11": _cameras(0.3)}
     doc = {(s, c.name): _pkl_entry(c) for s, cs in cams.items() for c in cs}
     (tmp_path / "cameras.pkl").write_bytes(pickle.dumps(doc))
-    clips = {("S9", "Walking_1", 1): range(4), ("S9", "Walking_1", 6): range(4),
-             ("S9", "Eating", 1): (0, 2), ("S11", "Directions", 3): (1,)}  # fmt: skip
+    clips = {
+        ("S9", "Walking_1", 1): range(4),
+        ("S9", "Walking_1", 6): range(4),
+        ("S9", "Eating", 1): (0, 2),
+        ("S11", "Directions", 3): (1,),
+    }
     world = {k: rng.uniform(-0.4, 0.4, (17, 3)) + [0, 0, 1.0] for k in clips}
     names, S, part = [], [], []
     for (subject, action, frame), views in clips.items():
@@ -61,8 +73,14 @@ def folder(tmp_path):
     det = part.copy()
     det[:, :, :2] += rng.normal(0, 2.0, (len(det), 17, 2))
     det[:, :, 2] = rng.uniform(0.3, 1.0, (len(det), 17))
-    np.savez(tmp_path / ANN, imgname=np.array(names), S=S, part=part,
-             center=np.zeros((len(S), 2)), scale=np.ones(len(S)))  # fmt: skip
+    np.savez(
+        tmp_path / ANN,
+        imgname=np.array(names),
+        S=S,
+        part=part,
+        center=np.zeros((len(S), 2)),
+        scale=np.ones(len(S)),
+    )
     np.save(tmp_path / DET, det)
     return tmp_path, world, det, part
 
@@ -97,8 +115,9 @@ def test_synthetic_subject_regrouped_into_views(folder):
 def test_synthetic_sources_and_subjects(folder):
     root, _, _, part = folder
     gt2d = _load(root, source="gt")
-    np.testing.assert_allclose(gt2d.keypoints[1, 3, 0, COCO17.index("left_knee")],
-                               part[3, H36M17.index("left_knee"), :2])  # fmt: skip
+    np.testing.assert_allclose(
+        gt2d.keypoints[1, 3, 0, COCO17.index("left_knee")], part[3, H36M17.index("left_knee"), :2]
+    )
     assert _load(root, source="none").keypoints is None
     assert h36m_subjects(root, ANN) == ["S9", "S11"]
     s11 = _load(root, "S11", source="none")
@@ -123,12 +142,18 @@ def test_synthetic_bad_inputs(folder):
     np.savez(root / ANN, imgname=np.array(["S9/not an h36m name.jpg"]), S=np.zeros((1, 17, 4)))
     with pytest.raises(InputError, match=r"imgname\[0\]"):
         _load(root)
-    np.savez(root / ANN, imgname=np.array(["S9/S9_Eating.54138969/S9_Eating.54138969_000001.jpg"]),
-             S=np.zeros((1, 16, 4)))  # fmt: skip
+    np.savez(
+        root / ANN,
+        imgname=np.array(["S9/S9_Eating.54138969/S9_Eating.54138969_000001.jpg"]),
+        S=np.zeros((1, 16, 4)),
+    )
     with pytest.raises(InputError, match=r"'S'.*shape"):
         _load(root)
-    np.savez(root / ANN, imgname=np.array(["S9/S9_Eating.12345678/S9_Eating.12345678_000001.jpg"]),
-             S=np.zeros((1, 17, 4)))  # fmt: skip
+    np.savez(
+        root / ANN,
+        imgname=np.array(["S9/S9_Eating.12345678/S9_Eating.12345678_000001.jpg"]),
+        S=np.zeros((1, 17, 4)),
+    )
     with pytest.raises(InputError, match="12345678"):
         _load(root)
 

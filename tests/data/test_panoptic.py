@@ -16,19 +16,34 @@ from rmpl.skeleton import COCO17
 
 SEQ = "170101_test"
 # The Panoptic toolbox's joints19 order, written out here independently of the loader.
-PANOPTIC_ORDER = {"nose": 1, "left_shoulder": 3, "left_elbow": 4, "left_wrist": 5,
-                  "left_hip": 6, "left_knee": 7, "left_ankle": 8, "right_shoulder": 9,
-                  "right_elbow": 10, "right_wrist": 11, "right_hip": 12, "right_knee": 13,
-                  "right_ankle": 14, "left_eye": 15, "left_ear": 16, "right_eye": 17,
-                  "right_ear": 18}  # fmt: skip
+PANOPTIC_ORDER = {
+    "nose": 1,
+    "left_shoulder": 3,
+    "left_elbow": 4,
+    "left_wrist": 5,
+    "left_hip": 6,
+    "left_knee": 7,
+    "left_ankle": 8,
+    "right_shoulder": 9,
+    "right_elbow": 10,
+    "right_wrist": 11,
+    "right_hip": 12,
+    "right_knee": 13,
+    "right_ankle": 14,
+    "left_eye": 15,
+    "left_ear": 16,
+    "right_eye": 17,
+    "right_ear": 18,
+}
 
 
 def _rig() -> Rig:
     cams = []
     for i, name in enumerate((*DEFAULT_CAMERAS, "00_30", "01_01")):
         a = 2 * np.pi * i / 7
-        R, t = look_at(np.array([3 * np.cos(a), -1.5, 3 * np.sin(a)]), np.zeros(3),
-                       up=np.array([0, -1.0, 0]))  # fmt: skip
+        R, t = look_at(
+            np.array([3 * np.cos(a), -1.5, 3 * np.sin(a)]), np.zeros(3), up=np.array([0, -1.0, 0])
+        )
         size = (1920, 1080) if name.startswith("00_") else (640, 480)
         K = [[1400.0, 0, size[0] / 2], [0, 1400.0, size[1] / 2], [0, 0, 1]]
         cams.append(Camera(K, R, t, np.zeros(5), size, name))
@@ -50,8 +65,10 @@ def sequence(tmp_path):
     conf = rng.uniform(0.2, 1.0, (2, 2, 19))
     conf[0, 1, 16] = -1.0  # body 5, frame 100: left ear not reconstructed
     conf[1, 1, 4] = 0.05  # body 5, frame 101: left elbow below the threshold
-    frames = {100: [_body(0, joints[0, 0], conf[0, 0]), _body(5, joints[0, 1], conf[0, 1])],
-              101: [_body(5, joints[1, 1], conf[1, 1])]}  # fmt: skip
+    frames = {
+        100: [_body(0, joints[0, 0], conf[0, 0]), _body(5, joints[0, 1], conf[0, 1])],
+        101: [_body(5, joints[1, 1], conf[1, 1])],
+    }
     for f, bodies in frames.items():
         doc = {"version": 0.7, "univTime": 1.0, "fpsType": "hd_29_97", "bodies": bodies}
         (seq / "hdPose3d_stage1_coco19" / f"body3DScene_{f:08d}.json").write_text(json.dumps(doc))
@@ -89,9 +106,16 @@ def test_camera_selection_and_sequence_argument(sequence):
 
 def _write_detections(path, frames_people: dict[int, list[np.ndarray]]):
     """MMPose video predictions: keypoints [[x, y], ...] and keypoint_scores."""
-    doc = [{"frame_id": f, "instances": [{"keypoints": p[:, :2].tolist(),
-                                          "keypoint_scores": p[:, 2].tolist()} for p in people]}
-           for f, people in frames_people.items()]  # fmt: skip
+    doc = [
+        {
+            "frame_id": f,
+            "instances": [
+                {"keypoints": p[:, :2].tolist(), "keypoint_scores": p[:, 2].tolist()}
+                for p in people
+            ],
+        }
+        for f, people in frames_people.items()
+    ]
     path.write_text(json.dumps(doc))
 
 

@@ -26,7 +26,9 @@ def random_rig(rng, num=4, dist_scale=0.0):
         eye = np.array([4 * np.cos(ang), 4 * np.sin(ang), rng.uniform(0.5, 3)])
         R, t = look_at(eye, rng.uniform(-0.3, 0.3, 3) + [0, 0, 1])
         f = rng.uniform(400, 1500)
-        K = np.array([[f, 0, rng.uniform(300, 700)], [0, f * rng.uniform(0.95, 1.05), 400], [0, 0, 1]])
+        K = np.array(
+            [[f, 0, rng.uniform(300, 700)], [0, f * rng.uniform(0.95, 1.05), 400], [0, 0, 1]]
+        )
         dist = dist_scale * np.array([-0.2, 0.05, 1e-3, -1e-3, 0.01]) * rng.uniform(0, 1, 5)
         cams.append(Camera(K, R, t, dist, (1000, 800), f"c{i}"))
     return Rig(tuple(cams))

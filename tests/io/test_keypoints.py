@@ -20,10 +20,25 @@ from rmpl.skeleton import BODY25, BODY25B, COCO17
 
 # OpenPose COCO-18 order, written out here independently of the reader.
 COCO18 = (
-    "nose", "neck", "right_shoulder", "right_elbow", "right_wrist", "left_shoulder",
-    "left_elbow", "left_wrist", "right_hip", "right_knee", "right_ankle", "left_hip",
-    "left_knee", "left_ankle", "right_eye", "left_eye", "right_ear", "left_ear",
-)  # fmt: skip
+    "nose",
+    "neck",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "right_eye",
+    "left_eye",
+    "right_ear",
+    "left_ear",
+)
 
 DEMO = Path("pose2sim_demo/Pose2Sim/S01_Demo_SingleTrial")
 
@@ -38,9 +53,12 @@ def _person(num_joints: int, seed: int) -> np.ndarray:
 def _write_openpose(d: Path, frame: int, people: list[np.ndarray], prefix: str = "") -> Path:
     d.mkdir(parents=True, exist_ok=True)
     prefix = prefix or d.name.removesuffix("_json")
-    doc = {"version": 1.3, "people": [
-        {"person_id": [-1], "pose_keypoints_2d": p.reshape(-1).tolist()} for p in people
-    ]}  # fmt: skip
+    doc = {
+        "version": 1.3,
+        "people": [
+            {"person_id": [-1], "pose_keypoints_2d": p.reshape(-1).tolist()} for p in people
+        ],
+    }
     path = d / f"{prefix}.{frame:04d}.json"
     path.write_text(json.dumps(doc))
     return path
@@ -57,8 +75,11 @@ def test_pose2sim_demo_loads_as_coco17(shared_data):
     assert kp.views == ["cam01", "cam02", "cam03", "cam04"]
     assert kp.skeleton == "coco17" and kp.num_joints == 17
     assert kp.fps == 60.0  # from the trial's Config.toml
-    named = {int(m.group(1)) for f in pose_dir.glob("cam0*_json/*.json")
-             if (m := re.fullmatch(r"cam0\d\.(\d+)", f.stem))}  # fmt: skip
+    named = {
+        int(m.group(1))
+        for f in pose_dir.glob("cam0*_json/*.json")
+        if (m := re.fullmatch(r"cam0\d\.(\d+)", f.stem))
+    }
     assert kp.frames.tolist() == sorted(named)
     assert 90 <= kp.num_frames <= 110
 
@@ -77,8 +98,7 @@ def test_pose2sim_demo_loads_as_coco17(shared_data):
         nose = np.nanmedian(y[:, v, :, COCO17.index("nose")])
         ankles = np.nanmedian(y[:, v, :, COCO17.indices(["left_ankle", "right_ankle"])])
         hips = np.nanmedian(y[:, v, :, COCO17.indices(["left_hip", "right_hip"])])
-        shoulders = np.nanmedian(
-            y[:, v, :, COCO17.indices(["left_shoulder", "right_shoulder"])])
+        shoulders = np.nanmedian(y[:, v, :, COCO17.indices(["left_shoulder", "right_shoulder"])])
         assert nose < shoulders < hips < ankles
 
 
@@ -104,8 +124,9 @@ def test_skeleton_argument_and_config_tell_body25_from_body25b(shared_data, tmp_
     src = shared_data / DEMO / "pose" / "cam01_json"
     copy = tmp_path / "trial" / "pose" / "cam01_json"
     shutil.copytree(src, copy)
-    body = np.array(json.loads((src / "cam01.0000.json").read_text())["people"][0]
-                    ["pose_keypoints_2d"]).reshape(25, 3)  # fmt: skip
+    body = np.array(
+        json.loads((src / "cam01.0000.json").read_text())["people"][0]["pose_keypoints_2d"]
+    ).reshape(25, 3)
     eye = COCO17.index("left_eye")
 
     default = load_keypoints(copy)  # no Config.toml: 25 points read as BODY_25
@@ -114,10 +135,12 @@ def test_skeleton_argument_and_config_tell_body25_from_body25b(shared_data, tmp_
 
     explicit = load_keypoints(copy, skeleton="body25b")
     np.testing.assert_allclose(
-        explicit.keypoints[0, 0, 0, eye], body[BODY25B.index("left_eye"), :2])
+        explicit.keypoints[0, 0, 0, eye], body[BODY25B.index("left_eye"), :2]
+    )
 
     (tmp_path / "trial" / "Config.toml").write_text(
-        "[project]\nframe_rate = 50\n[pose]\npose_model = 'BODY_25B'\n")
+        "[project]\nframe_rate = 50\n[pose]\npose_model = 'BODY_25B'\n"
+    )
     configured = load_keypoints(copy)
     np.testing.assert_array_equal(configured.keypoints, explicit.keypoints)
     assert configured.fps == 50.0
@@ -221,15 +244,17 @@ def test_frames_without_people_are_kept(tmp_path):
 def test_coco_dataset_with_image_names(tmp_path):
     people = [_person(17, 1), _person(17, 2), _person(17, 3)]
     doc = {
-        "images": [{"id": 7, "file_name": "frame_000010.jpg"},
-                   {"id": 8, "file_name": "frame_000011.jpg"},
-                   {"id": 9, "file_name": "frame_000012.jpg"}],
+        "images": [
+            {"id": 7, "file_name": "frame_000010.jpg"},
+            {"id": 8, "file_name": "frame_000011.jpg"},
+            {"id": 9, "file_name": "frame_000012.jpg"},
+        ],
         "annotations": [
             {"image_id": 7, "keypoints": people[0].reshape(-1).tolist(), "score": 0.9},
             {"image_id": 9, "keypoints": people[1].reshape(-1).tolist(), "score": 0.8},
             {"image_id": 9, "keypoints": people[2].reshape(-1).tolist(), "score": 0.7},
         ],
-    }  # fmt: skip
+    }
     path = tmp_path / "cam3.json"
     path.write_text(json.dumps(doc))
     kp = load_keypoints(path)
@@ -244,9 +269,10 @@ def test_coco_ground_truth_visibility_flags(tmp_path):
     p = _person(17, 6)
     p[:, 2] = 2
     p[3] = 0  # not labelled
-    doc = {"images": [{"id": 1, "file_name": "a.jpg"}],
-           "annotations": [{"image_id": 1, "num_keypoints": 16,
-                            "keypoints": p.reshape(-1).tolist()}]}  # fmt: skip
+    doc = {
+        "images": [{"id": 1, "file_name": "a.jpg"}],
+        "annotations": [{"image_id": 1, "num_keypoints": 16, "keypoints": p.reshape(-1).tolist()}],
+    }
     (tmp_path / "gt.json").write_text(json.dumps(doc))
     kp = load_keypoints(tmp_path / "gt.json", format="coco")
     assert kp.frames.tolist() == [1]  # no digits in the file name: the image id
@@ -255,8 +281,10 @@ def test_coco_ground_truth_visibility_flags(tmp_path):
 
 
 def test_coco_results_list(tmp_path):
-    anns = [{"image_id": 4, "category_id": 1, "keypoints": _person(17, 4).reshape(-1).tolist()},
-            {"image_id": 2, "category_id": 1, "keypoints": _person(17, 2).reshape(-1).tolist()}]
+    anns = [
+        {"image_id": 4, "category_id": 1, "keypoints": _person(17, 4).reshape(-1).tolist()},
+        {"image_id": 2, "category_id": 1, "keypoints": _person(17, 2).reshape(-1).tolist()},
+    ]
     (tmp_path / "res.json").write_text(json.dumps(anns))
     kp = load_keypoints(tmp_path / "res.json")
     assert kp.frames.tolist() == [2, 4]
@@ -264,8 +292,12 @@ def test_coco_results_list(tmp_path):
 
 
 def _instance(p: np.ndarray) -> dict:
-    return {"keypoints": p[:, :2].tolist(), "keypoint_scores": p[:, 2].tolist(),
-            "bbox": [[0, 0, 1, 1]], "bbox_score": 0.9}  # fmt: skip
+    return {
+        "keypoints": p[:, :2].tolist(),
+        "keypoint_scores": p[:, 2].tolist(),
+        "bbox": [[0, 0, 1, 1]],
+        "bbox_score": 0.9,
+    }
 
 
 def test_mmpose_video_predictions_halpe26(tmp_path):
@@ -364,8 +396,11 @@ def test_wrong_keypoint_length(tmp_path):
 
 def test_count_not_matching_skeleton_argument(tmp_path):
     bad = _write_openpose(tmp_path / "v", 0, [_person(17, 0)])
-    _raises(bad, "people[0].pose_keypoints_2d",
-            lambda: load_keypoints(tmp_path / "v", skeleton="body25b"))  # fmt: skip
+    _raises(
+        bad,
+        "people[0].pose_keypoints_2d",
+        lambda: load_keypoints(tmp_path / "v", skeleton="body25b"),
+    )
 
 
 def test_nan_score(tmp_path):

@@ -18,8 +18,16 @@ from rmpl.io import poses as poses_module
 from rmpl.io.poses import JointSource, Poses3D, load_poses, save_poses
 from rmpl.skeleton import COCO17, H36M17
 
-TRC_KEYS = ["DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
-            "OrigDataStartFrame", "OrigNumFrames"]  # fmt: skip
+TRC_KEYS = [
+    "DataRate",
+    "CameraRate",
+    "NumFrames",
+    "NumMarkers",
+    "Units",
+    "OrigDataRate",
+    "OrigDataStartFrame",
+    "OrigNumFrames",
+]
 
 
 def _poses(T=5, P=2, seed=0, frames=None, fps=60.0, skeleton="coco17", ids=None) -> Poses3D:
@@ -31,8 +39,9 @@ def _poses(T=5, P=2, seed=0, frames=None, fps=60.0, skeleton="coco17", ids=None)
     flags = rng.integers(1, 4, size=(T, P, J))
     flags[missing] = JointSource.MISSING
     scores = np.where(missing, 0.0, rng.uniform(0, 1, size=(T, P, J)))
-    return Poses3D(points, scores, flags, rng.integers(0, 6, size=(T, P, J)), skeleton,
-                   frames, fps, ids)  # fmt: skip
+    return Poses3D(
+        points, scores, flags, rng.integers(0, 6, size=(T, P, J)), skeleton, frames, fps, ids
+    )
 
 
 def _opensim_fields(line: str) -> list[str]:
@@ -53,8 +62,11 @@ def poses3d(draw):
     points = rng.normal(scale=draw(st.sampled_from([1e-3, 1.0, 1e3])), size=(T, P, J, 3))
     missing = rng.random((T, P, J)) < draw(st.sampled_from([0.0, 0.3, 1.0]))
     points[missing] = np.nan
-    opt = draw(st.fixed_dictionaries({
-        "scores": st.booleans(), "flags": st.booleans(), "num_views": st.booleans()}))
+    opt = draw(
+        st.fixed_dictionaries(
+            {"scores": st.booleans(), "flags": st.booleans(), "num_views": st.booleans()}
+        )
+    )
     flags = np.where(missing, 0, rng.integers(1, 4, size=(T, P, J)))
     return Poses3D(
         points,
@@ -65,7 +77,7 @@ def poses3d(draw):
         frames=draw(st.integers(-10, 500)) + np.cumsum(rng.integers(1, 5, size=T)),
         fps=draw(st.one_of(st.none(), st.floats(0.5, 1000.0))),
         person_ids=rng.choice(100, size=P, replace=False),
-    )  # fmt: skip
+    )
 
 
 def _assert_same(a: Poses3D, b: Poses3D) -> None:
@@ -95,8 +107,7 @@ def test_json_names_units_and_joints(tmp_path):
     doc = json.loads(save_poses(poses, tmp_path / "p.json").read_text())
     assert doc["units"] == "m"
     assert doc["joints"] == list(COCO17.joints)
-    assert doc["flag_values"] == {"missing": 0, "lifted": 1, "triangulated": 2,
-                                  "interpolated": 3}  # fmt: skip
+    assert doc["flag_values"] == {"missing": 0, "lifted": 1, "triangulated": 2, "interpolated": 3}
     missing = np.isnan(poses.points[0, 0, :, 0])
     assert all(doc["points"][0][0][j] == [None, None, None] for j in np.flatnonzero(missing))
 
@@ -106,8 +117,10 @@ def test_json_in_millimetres_is_read_in_metres(tmp_path):
     path = save_poses(poses, tmp_path / "p.json")
     doc = json.loads(path.read_text())
     doc["units"] = "mm"
-    doc["points"] = [[[[None if c is None else c * 1000 for c in j] for j in p] for p in t]
-                     for t in doc["points"]]  # fmt: skip
+    doc["points"] = [
+        [[[None if c is None else c * 1000 for c in j] for j in p] for p in t]
+        for t in doc["points"]
+    ]
     path.write_text(json.dumps(doc))
     np.testing.assert_allclose(load_poses(path).points, poses.points, rtol=1e-12)
 
@@ -182,7 +195,7 @@ def test_trc_up_axis_y(tmp_path):
     path = save_poses(poses, tmp_path / "p.trc", up_axis="y")
     row = _opensim_fields([ln for ln in path.read_text().split("\n")[6:] if ln][0])
     j = int(np.flatnonzero(~np.isnan(poses.points[0, 0, :, 0]))[0])
-    x, y, z = (float(v) for v in row[2 + 3 * j: 5 + 3 * j])
+    x, y, z = (float(v) for v in row[2 + 3 * j : 5 + 3 * j])
     X, Y, Z = poses.points[0, 0, j]
     assert (x, y, z) == pytest.approx((X, Z, -Y), abs=1e-6)  # up is +Y, handedness kept
     back = load_poses(path, up_axis="y")

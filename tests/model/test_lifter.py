@@ -42,7 +42,9 @@ def test_masked_view_changes_nothing():
     assert torch.allclose(ref, more, atol=1e-5)
     nan_rays = garbage.clone()
     nan_rays[:, -1] = float("nan")
-    assert torch.allclose(ref, model(nan_rays, torch.cat([scores, torch.ones(3, 1, 17)], 1)), atol=1e-5)
+    assert torch.allclose(
+        ref, model(nan_rays, torch.cat([scores, torch.ones(3, 1, 17)], 1)), atol=1e-5
+    )
 
 
 @pytest.mark.parametrize("geometric", [True, False])

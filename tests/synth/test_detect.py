@@ -95,8 +95,16 @@ def test_mediapipe_finds_a_rendered_body(mediapipe_detector):
     v, k = place_bodies(b.vertices, b.keypoints, np.zeros(1), np.zeros((1, 2)))
     K, R, t, size = _front_view(k[0])
     with Renderer(m.faces, m.num_vertices) as r:
-        images = r.render(v, random_outfits(m.vertex_parts, 1, rng=0), K, R, t, size,
-                          lighting=[random_lighting(0)], rng=0)  # fmt: skip
+        images = r.render(
+            v,
+            random_outfits(m.vertex_parts, 1, rng=0),
+            K,
+            R,
+            t,
+            size,
+            lighting=[random_lighting(0)],
+            rng=0,
+        )
     kp, scores = mediapipe_detector(images)
     gt = project(k[0], K[0, 0], R[0, 0], t[0, 0])
     err = np.linalg.norm(kp[0] - gt, axis=-1)

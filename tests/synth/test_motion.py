@@ -129,19 +129,37 @@ BODY = (
         ("head", "lowerback", (0, 1, 0), 3.0, "rx ry rz"),
     ]
     + _LEFT
-    + [("r" + n[1:], p if p in ("root", "lowerback") else "r" + p[1:], (-d[0], d[1], d[2]), ln, f)
-       for n, p, d, ln, f in _LEFT]
-)  # fmt: skip
+    + [
+        ("r" + n[1:], p if p in ("root", "lowerback") else "r" + p[1:], (-d[0], d[1], d[2]), ln, f)
+        for n, p, d, ln, f in _LEFT
+    ]
+)
 
 
 def body_asf():
-    out = [":version 1.10", ":name body", ":units", "  mass 1.0", "  length 0.45", "  angle deg",
-           ":root", "   order TX TY TZ RX RY RZ", "   axis XYZ", "   position 0 0 0",
-           "   orientation 0 0 0", ":bonedata"]  # fmt: skip
+    out = [
+        ":version 1.10",
+        ":name body",
+        ":units",
+        "  mass 1.0",
+        "  length 0.45",
+        "  angle deg",
+        ":root",
+        "   order TX TY TZ RX RY RZ",
+        "   axis XYZ",
+        "   position 0 0 0",
+        "   orientation 0 0 0",
+        ":bonedata",
+    ]
     for i, (name, _, d, length, dofs) in enumerate(BODY, 1):
-        out += ["  begin", f"     id {i}", f"     name {name}",
-                f"     direction {d[0]} {d[1]} {d[2]}", f"     length {length}",
-                "     axis 0 0 0  XYZ"]  # fmt: skip
+        out += [
+            "  begin",
+            f"     id {i}",
+            f"     name {name}",
+            f"     direction {d[0]} {d[1]} {d[2]}",
+            f"     length {length}",
+            "     axis 0 0 0  XYZ",
+        ]
         out += [f"    dof {dofs}"] if dofs else []
         out += ["  end"]
     out += [":hierarchy", "  begin"]
@@ -174,15 +192,27 @@ def body_bvh(frames, fps=120):
     def joint(name, depth):
         pad = "  " * depth
         off = vec[parent[name]] if parent[name] != "root" else np.zeros(3)
-        lines.extend([f"{pad}JOINT {name}", f"{pad}{{", f"{pad}  OFFSET {off[0]} {off[1]} {off[2]}",
-                      f"{pad}  CHANNELS 3 Zrotation Yrotation Xrotation"])  # fmt: skip
+        lines.extend(
+            [
+                f"{pad}JOINT {name}",
+                f"{pad}{{",
+                f"{pad}  OFFSET {off[0]} {off[1]} {off[2]}",
+                f"{pad}  CHANNELS 3 Zrotation Yrotation Xrotation",
+            ]
+        )
         children = [n for n, p, _, _, _ in BODY if p == name]
         for child in children:
             joint(child, depth + 1)
         if not children:
             v = vec[name]
-            lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {v[0]} {v[1]} {v[2]}",
-                          f"{pad}  }}"])  # fmt: skip
+            lines.extend(
+                [
+                    f"{pad}  End Site",
+                    f"{pad}  {{",
+                    f"{pad}    OFFSET {v[0]} {v[1]} {v[2]}",
+                    f"{pad}  }}",
+                ]
+            )
         lines.append(f"{pad}}}")
 
     for name in [n for n, p, _, _, _ in BODY if p == "root"]:
@@ -258,12 +288,15 @@ def test_asf_chain_known_positions(chain):
     assert m.names == ("root", "upper", "lower", "lower_end")
     assert m.parents == (-1, 0, 1, 2)
     assert m.positions.shape == (4, 4, 3) and m.rotations.shape == (4, 4, 3, 3)
-    expected_y_up = np.array([
-        [[0, 0, 0], [0, 0, 0], [2, 0, 0], [3, 0, 0]],
-        [[0, 0, 0], [0, 0, 0], [0, 2, 0], [0, 3, 0]],  # upper rz 90: +x -> +y
-        [[0, 0, 0], [0, 0, 0], [2, 0, 0], [2, 0, -1]],  # lower rx 90 about its x = world y
-        [[1, 2, 3], [1, 2, 3], [1, 4, 3], [1, 5, 3]],  # root ry 90 keeps +y
-    ], dtype=float)  # fmt: skip
+    expected_y_up = np.array(
+        [
+            [[0, 0, 0], [0, 0, 0], [2, 0, 0], [3, 0, 0]],
+            [[0, 0, 0], [0, 0, 0], [0, 2, 0], [0, 3, 0]],  # upper rz 90: +x -> +y
+            [[0, 0, 0], [0, 0, 0], [2, 0, 0], [2, 0, -1]],  # lower rx 90 about its x = world y
+            [[1, 2, 3], [1, 2, 3], [1, 4, 3], [1, 5, 3]],  # root ry 90 keeps +y
+        ],
+        dtype=float,
+    )
     assert np.allclose(m.positions, expected_y_up @ A.T, atol=1e-9)
     # z up: the chain raised by upper rz 90 points up.
     assert np.allclose(m.positions[1, 3], [0, 0, 3])
@@ -363,8 +396,14 @@ def test_bvh_implausible_height_needs_scale(tmp_path):
     assert load_bvh(path, scale=0.1).scale == 0.1
 
 
-@pytest.mark.parametrize("order", ["Zrotation Xrotation Yrotation", "Yrotation Zrotation Xrotation",
-                                   "Xrotation Yrotation Zrotation"])  # fmt: skip
+@pytest.mark.parametrize(
+    "order",
+    [
+        "Zrotation Xrotation Yrotation",
+        "Yrotation Zrotation Xrotation",
+        "Xrotation Yrotation Zrotation",
+    ],
+)
 def test_bvh_rotation_order_matches_scipy_moving_axes(tmp_path, order):
     angles = [30.0, -50.0, 70.0]
     rows = [[0, 160, 0, 0, 0, 0, *angles, 0, 0, 0]]
@@ -414,8 +453,13 @@ def test_bvh_wrong_value_count(tmp_path):
 
 def test_bvh_bad_number_and_truncation(tmp_path):
     lines = chain_bvh().splitlines()
-    bad(tmp_path, "a.bvh", "\n".join(lines[:-1] + [lines[-1].replace("90", "9o")]), load_bvh,
-        f"line {len(lines)}")  # fmt: skip
+    bad(
+        tmp_path,
+        "a.bvh",
+        "\n".join(lines[:-1] + [lines[-1].replace("90", "9o")]),
+        load_bvh,
+        f"line {len(lines)}",
+    )
     bad(tmp_path, "b.bvh", "\n".join(lines[:-1]), load_bvh, "Frames", "truncated")
     bad(tmp_path, "c.bvh", "\n".join(lines[:12]), load_bvh, "MOTION")
 

@@ -112,8 +112,9 @@ def test_cameras_bad_input():
         sample_cameras(0, [0, 0, 1], "h36m")
     with pytest.raises(ValueError, match="focal and fov"):
         CameraPreset("x", "orbit", distance=(1, 2), height=(1, 2))
-    impossible = CameraPreset("x", "orbit", distance=(1, 2), height=(1, 2), focal=(500, 500),
-                              min_distance=50.0)  # fmt: skip
+    impossible = CameraPreset(
+        "x", "orbit", distance=(1, 2), height=(1, 2), focal=(500, 500), min_distance=50.0
+    )
     with pytest.raises(RuntimeError, match="no valid camera"):
         sample_cameras(2, [0, 0, 1], impossible, rng=0, max_tries=3)
 
@@ -197,8 +198,7 @@ def test_render_pinhole_matches_project(box_renderer):
     R, t = R[None, None], t[None, None]
     size = np.array([[[640, 360]]])  # non-square, off-centre principal point
     colors = np.full((1, len(v), 3), 0.8, np.float32)
-    images, masks = r.render(v[None], colors, K, R, t, size, backgrounds=False,
-                             return_masks=True)  # fmt: skip
+    images, masks = r.render(v[None], colors, K, R, t, size, backgrounds=False, return_masks=True)
     mask = masks[0]
     assert images[0].shape == (360, 640, 3) and mask.shape == (360, 640)
     # Expected silhouette: pixels whose centre lies inside the convex hull of the projected box.
@@ -215,8 +215,12 @@ def test_render_pinhole_matches_project(box_renderer):
     assert disagree.sum() < 0.02 * expected.sum()
     ys, xs = np.nonzero(mask)
     ye, xe = np.nonzero(expected)
-    for got, want in ((xs.min(), xe.min()), (xs.max(), xe.max()), (ys.min(), ye.min()),
-                      (ys.max(), ye.max())):  # fmt: skip
+    for got, want in (
+        (xs.min(), xe.min()),
+        (xs.max(), xe.max()),
+        (ys.min(), ye.min()),
+        (ys.max(), ye.max()),
+    ):
         assert abs(got - want) <= 1
     # A half-pixel or row/column flip would show here.
     np.testing.assert_allclose([xs.mean(), ys.mean()], [xe.mean(), ye.mean()], atol=0.1)
@@ -225,8 +229,9 @@ def test_render_pinhole_matches_project(box_renderer):
 
 def test_render_batch_backgrounds_and_sizes(box_renderer):
     r, v = box_renderer
-    K, R, t, size = sample_cameras(3, np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]),
-                                   "universal", rng=5)  # fmt: skip
+    K, R, t, size = sample_cameras(
+        3, np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]]), "universal", rng=5
+    )
     verts = np.stack([v, v])
     colors = random_outfits(np.zeros(len(v), int), 2, rng=0)
     images, masks = r.render(verts, colors, K, R, t, size, rng=0, return_masks=True)

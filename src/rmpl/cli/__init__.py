@@ -19,6 +19,7 @@ COMMANDS = {
     "evaluate": "rmpl.cli.evaluate",
     "bench": "rmpl.cli.bench",
     "example": "rmpl.cli.example",
+    "run": "rmpl.cli.run",
 }
 
 
@@ -36,7 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
             if e.name == module:
                 continue  # command not built yet
             raise
-        mod.register(sub.add_parser(name, help=mod.__doc__.splitlines()[0], description=mod.__doc__))
+        mod.register(
+            sub.add_parser(name, help=mod.__doc__.splitlines()[0], description=mod.__doc__)
+        )
     return parser
 
 
@@ -44,9 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code (0 success, 2 bad input)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s"
-    )
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s")
     try:
         return int(args.run(args) or 0)
     except (InputError, FileNotFoundError, ValueError) as e:

@@ -1,4 +1,4 @@
-"""What the 3D commands share: read calibration + 2D keypoints, match views, write 3D."""
+"""What the 3D commands share: read calibration + 2D input, match views to cameras."""
 
 from __future__ import annotations
 
@@ -18,14 +18,23 @@ OUTPUT_SUFFIXES = (".npz", ".json", ".trc", ".c3d")
 
 
 def add_io_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--calib", required=True, help="calibration file or folder (any supported format)")
     parser.add_argument(
-        "--keypoints", required=True, nargs="+",
-        help="2D keypoints: an rmpl .npz/.json, a COCO JSON per view, or one OpenPose JSON folder per view",
-    )  # fmt: skip
-    parser.add_argument("--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b, coco18)")
+        "--calib", required=True, help="calibration file or folder (any supported format)"
+    )
+    parser.add_argument(
+        "--keypoints",
+        required=True,
+        nargs="+",
+        help="2D keypoints: rmpl .npz/.json, COCO JSON per view, OpenPose JSON folders, "
+        "or a Shelf 4D folder",
+    )
+    parser.add_argument(
+        "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b, coco18)"
+    )
     parser.add_argument("--out", required=True, help=f"output file: {', '.join(OUTPUT_SUFFIXES)}")
-    parser.add_argument("--fps", type=float, default=None, help="frame rate for TRC/C3D if the input has none")
+    parser.add_argument(
+        "--fps", type=float, default=None, help="frame rate for TRC/C3D if the input has none"
+    )
 
 
 @dataclass
@@ -42,73 +51,105 @@ class Inputs:
 def check_output(path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in OUTPUT_SUFFIXES:
-        raise InputError(path, None, f"an output file ending in one of {', '.join(OUTPUT_SUFFIXES)}")
+        raise InputError(
+            path, None, f"an output file ending in one of {', '.join(OUTPUT_SUFFIXES)}"
+        )
     return path
 
 
-def load_inputs(args: argparse.Namespace) -> Inputs:
-    """Read the calibration and the keypoints, and put the views in the rig's order."""
+def _is_shelf4d(paths: list[str]) -> bool:
+    return len(paths) == 1 and (Path(paths[0]) / "detection" / "0.txt").is_file()
+
+
+def _shelf4d_keypoints(root: str):
+    """Shelf/4D-association detections: group each view's candidates into people."""
+    from tqdm import tqdm
+
+    from rmpl.association import group_people
+    from rmpl.data.shelf import load_shelf
+    from rmpl.io.keypoints import Keypoints2D
+
+    data = load_shelf(root)
+    groups = [
+        [group_people(c) for c in frame]
+        for frame in tqdm(data.detections, desc="grouping", unit="frame")
+    ]
+    P = max(1, max(len(k) for frame in groups for k, _ in frame))
+    T, V = len(groups), len(data.rig)
+    kp = np.full((T, V, P, 17, 2), np.nan)
+    sc = np.zeros((T, V, P, 17))
+    for t, frame in enumerate(groups):
+        for v, (k, s) in enumerate(frame):
+            kp[t, v, : len(k)], sc[t, v, : len(k)] = k, s
+    return Keypoints2D(kp, sc, "coco17", data.rig.names, np.asarray(data.frames), None)
+
+
+def _load_2d(args: argparse.Namespace, cache: Path | None):
+    from rmpl.io.keypoints import load_keypoints, save_keypoints
+
+    if getattr(args, "keypoints", None):
+        if _is_shelf4d(args.keypoints):
+            return _shelf4d_keypoints(args.keypoints[0])
+        return load_keypoints(args.keypoints, skeleton=args.skeleton)
+    if cache is not None and cache.is_file():
+        log.info("using cached 2D detections %s (delete it to detect again)", cache)
+        return load_keypoints(cache)
+    from rmpl.detect2d import detect_images, detect_videos
+
+    kp = detect_videos(args.videos) if getattr(args, "videos", None) else detect_images(args.images)
+    if cache is not None:
+        save_keypoints(kp, cache)
+    return kp
+
+
+def load_calibration_and_2d(args: argparse.Namespace, cache: Path | None = None) -> Inputs:
+    """Read the calibration and the 2D input, and put the views in the rig's order."""
     from rmpl.io.calibration import load_rig
-    from rmpl.io.keypoints import load_keypoints
 
     rig = load_rig(args.calib)
-    kp = load_keypoints(args.keypoints, skeleton=args.skeleton)
+    kp = _load_2d(args, cache)
     keypoints, scores = kp.keypoints, kp.scores
     V = keypoints.shape[1]
     views = list(kp.views)
+    source = ", ".join(args.keypoints) if getattr(args, "keypoints", None) else "2D input"
     if set(views) == set(rig.names) and views != rig.names:
         order = [views.index(n) for n in rig.names]
         keypoints, scores = keypoints[:, order], scores[:, order]
     elif V != len(rig):
         raise InputError(
-            args.keypoints[0] if len(args.keypoints) == 1 else ", ".join(args.keypoints),
+            source,
             "views",
             f"{len(rig)} views to match the cameras {rig.names} of {args.calib}",
             f"{V} views {views}",
         )
     elif views != rig.names:
-        log.info("matching keypoint views %s to cameras %s by order", views, rig.names)
+        log.info("matching 2D views %s to cameras %s by order", views, rig.names)
+    if not (scores > 0).any():
+        raise InputError(source, "scores", "at least one keypoint with confidence > 0", "all zero")
     return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or args.fps)
 
 
-def people_per_frame(inputs: Inputs) -> tuple[np.ndarray, np.ndarray]:
-    """Per-person lifter input: keypoints (T, N, V, J, 2) and scores (T, N, V, J).
+def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
+    """``rmpl lift`` / ``rmpl triangulate``: per-frame estimates, associated and tracked,
+    without temporal smoothing, written to one file."""
+    from rmpl.io.poses import save_poses
+    from rmpl.pipeline import RunConfig, run
 
-    With one person per view this is the input itself. With several, people are
-    associated across views by geometry (:mod:`rmpl.association`).
-    """
-    kp, sc = inputs.keypoints, inputs.scores
-    if kp.shape[2] <= 1:
-        return kp.transpose(0, 2, 1, 3, 4), sc.transpose(0, 2, 1, 3)
-    from rmpl.association import associate_sequence
-
-    return associate_sequence(kp, sc, inputs.rig)
-
-
-def save_result(
-    path: Path,
-    points: np.ndarray,
-    inputs: Inputs,
-    num_views: np.ndarray,
-    source: str,
-    error: np.ndarray | None = None,
-) -> None:
-    """Write (T, N, J, 3) points with per-joint view counts and a source flag."""
-    from rmpl.io.poses import JointSource, Poses3D, save_poses
-
-    seen = np.isfinite(points).all(-1)
-    flag = JointSource.LIFTED if source == "lifted" else JointSource.TRIANGULATED
-    flags = np.where(seen, int(flag), int(JointSource.MISSING)).astype(np.uint8)
-    poses = Poses3D(
-        points=points,
-        scores=None if error is None else np.where(seen, 1.0, 0.0),
-        flags=flags,
-        num_views=num_views.astype(np.int16),
-        skeleton="coco17",
-        frames=inputs.frames,
-        fps=inputs.fps,
-        person_ids=np.arange(points.shape[1]),
+    out = check_output(args.out)
+    inputs = load_calibration_and_2d(args)
+    cfg = RunConfig(method=method, **config)
+    poses = run(
+        inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg, temporal=False
     )
-    save_poses(poses, path)
-    log.info("wrote %s: %d frames x %d people, %.0f%% joints present",
-             path, points.shape[0], points.shape[1], 100 * seen.mean())  # fmt: skip
+    if out.suffix.lower() in (".trc", ".c3d") and not poses.fps:
+        raise InputError(out, "fps", "a frame rate for TRC/C3D (the input has none: pass --fps)")
+    save_poses(poses, out)
+    ok = np.isfinite(poses.points).all(-1)
+    log.info(
+        "wrote %s: %d frames x %d people, %.0f%% of joints present",
+        out,
+        ok.shape[0],
+        ok.shape[1],
+        100 * ok.mean(),
+    )
+    return 0

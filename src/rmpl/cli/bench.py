@@ -12,12 +12,18 @@ from rmpl.io.atomic import atomic_path
 
 
 def register(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--presets", default="default,paper", help="comma-separated: default, paper, small, tiny")
+    parser.add_argument(
+        "--presets", default="default,paper", help="comma-separated: default, paper, small, tiny"
+    )
     parser.add_argument("--views", default="1,2,3,4,5,6,7,8")
     parser.add_argument("--batches", default="1,8,64,512")
-    parser.add_argument("--backends", default="torch,onnx", help="torch and/or onnx (needs rmpl[fast])")
+    parser.add_argument(
+        "--backends", default="torch,onnx", help="torch and/or onnx (needs rmpl[fast])"
+    )
     parser.add_argument("--seconds", type=float, default=0.5, help="minimum timing per cell")
-    parser.add_argument("--long", type=int, default=10000, help="frames of the memory test sequence (0 = skip)")
+    parser.add_argument(
+        "--long", type=int, default=10000, help="frames of the memory test sequence (0 = skip)"
+    )
     parser.add_argument("--out", default=None, help="write the Markdown tables here")
     parser.set_defaults(run=run)
 
@@ -42,8 +48,10 @@ def run(args: argparse.Namespace) -> int:
     text = markdown(rows)
     if args.long:
         mb, seconds = long_sequence_memory(args.long)
-        text += (f"\nLifting a {args.long}-frame, 4-view sequence with `Lifter.lift`: "
-                 f"{seconds:.1f} s, peak resident memory {mb:.0f} MB.\n")  # fmt: skip
+        text += (
+            f"\nLifting a {args.long}-frame, 4-view sequence with `Lifter.lift`: "
+            f"{seconds:.1f} s, peak resident memory {mb:.0f} MB.\n"
+        )
     text += f"\nPeak resident memory of the whole benchmark process: {peak_memory_mb():.0f} MB.\n"
     print(text)
     if args.out:

@@ -21,13 +21,21 @@ DATASETS = ("shelf", "synthetic")
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dataset", required=True, choices=DATASETS)
     parser.add_argument("--root", required=True, help="dataset folder (or pose bank for synthetic)")
-    parser.add_argument("--methods", default="triangulate,robust,rmpl",
-                        help="comma-separated: triangulate, robust, rmpl[:MODEL]")  # fmt: skip
-    parser.add_argument("--views", default="all,pairs",
-                        help="'all', 'pairs' and/or view counts, e.g. 1,2,3,4,5")  # fmt: skip
+    parser.add_argument(
+        "--methods",
+        default="triangulate,robust,rmpl",
+        help="comma-separated: triangulate, robust, rmpl[:MODEL]",
+    )
+    parser.add_argument(
+        "--views", default="all,pairs", help="'all', 'pairs' and/or view counts, e.g. 1,2,3,4,5"
+    )
     parser.add_argument("--out", default=None, help="folder for results.md / results.csv")
-    parser.add_argument("--holdout", default="03", help="synthetic: held-out subjects, comma-separated")
-    parser.add_argument("--samples", type=int, default=2000, help="synthetic: scenes per view count")
+    parser.add_argument(
+        "--holdout", default="03", help="synthetic: held-out subjects, comma-separated"
+    )
+    parser.add_argument(
+        "--samples", type=int, default=2000, help="synthetic: scenes per view count"
+    )
     parser.set_defaults(run=run)
 
 

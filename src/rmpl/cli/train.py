@@ -17,16 +17,22 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("config", help="training config TOML (see configs/)")
     parser.add_argument("--out", required=True, help="run directory (resumes if it exists)")
     parser.add_argument(
-        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
         help="override a config value (TOML syntax), e.g. --set steps=2000 --set model.dim=96",
-    )  # fmt: skip
+    )
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     cfg = TrainConfig.from_toml(args.config, args.overrides)
     if not cfg.poses:
-        raise ValueError(f"{args.config}: field 'poses' must name a pose bank (.npz) or motion folder")
+        raise ValueError(
+            f"{args.config}: field 'poses' must name a pose bank (.npz) or motion folder"
+        )
     bank = load_poses(cfg.poses)
     train_set, val_set = bank.split(cfg.holdout)
     if not len(train_set) or not len(val_set):
@@ -34,7 +40,9 @@ def run(args: argparse.Namespace) -> int:
             f"{cfg.poses}: holdout subjects {list(cfg.holdout)} must leave both training and "
             f"validation poses; subjects present: {sorted(bank.counts())}"
         )
-    log.info("poses: %d train, %d validation (held out: %s)", len(train_set), len(val_set), cfg.holdout)
+    log.info(
+        "poses: %d train, %d validation (held out: %s)", len(train_set), len(val_set), cfg.holdout
+    )
     train(cfg, args.out, train_set.poses, val_set.poses)
     return 0
 

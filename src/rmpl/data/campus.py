@@ -140,8 +140,12 @@ def load_actors_gt(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
         return gt3d, None
     rows2 = _actor_cells(doc, "actor2D", path)
     if (len(rows2[0]), len(rows2)) != (T, P):
-        raise InputError(path, "actor2D", f"{P} actors x {T} frames as actor3D",
-                         f"{len(rows2)} x {len(rows2[0])}")  # fmt: skip
+        raise InputError(
+            path,
+            "actor2D",
+            f"{P} actors x {T} frames as actor3D",
+            f"{len(rows2)} x {len(rows2[0])}",
+        )
     V = max(np.asarray(c).size for actor in rows2 for c in actor)
     gt2d = np.full((T, P, V, J, 2), np.nan)
     for p, actor in enumerate(rows2):
@@ -176,9 +180,11 @@ def _load_pickle(path: Path) -> object:
         return _Unpickler(io.BytesIO(path.read_bytes())).load()
     except Exception as e:  # any failure of an untrusted pickle is bad input
         raise InputError(
-            path, None, "a pickle of plain dicts, lists and numpy arrays",
+            path,
+            None,
+            "a pickle of plain dicts, lists and numpy arrays",
             f"{type(e).__name__}: {e}",
-        ) from None  # fmt: skip
+        ) from None
 
 
 def _person(item: object, path: Path, field: str) -> np.ndarray:
@@ -285,8 +291,12 @@ def load_campus_layout(
     gt, _ = load_actors_gt(root / "actorsGT.mat")
     keep = np.arange(len(gt)) if frames is None else np.asarray(list(frames), dtype=int)
     if keep.ndim != 1 or np.any(keep < 0) or np.any(keep >= len(gt)):
-        raise InputError(root / "actorsGT.mat", "frames", f"frame numbers in 0..{len(gt) - 1}",
-                         f"{keep.min(initial=0)}..{keep.max(initial=0)}")  # fmt: skip
+        raise InputError(
+            root / "actorsGT.mat",
+            "frames",
+            f"frame numbers in 0..{len(gt) - 1}",
+            f"{keep.min(initial=0)}..{keep.max(initial=0)}",
+        )
     pred = root / f"pred_{dataset}_maskrcnn_hrnet_coco.pkl"
     keypoints = scores = None
     if pred.is_file():

@@ -96,8 +96,9 @@ def _parse_names(names: np.ndarray, path: Path) -> list[tuple[str, str, str, int
     for i, name in enumerate(names.tolist()):
         m = _IMGNAME.fullmatch(str(name))
         if m is None:
-            raise InputError(path, f"imgname[{i}]",
-                             "S<n>/S<n>_<action>.<camera>/..._<frame>.jpg", name)  # fmt: skip
+            raise InputError(
+                path, f"imgname[{i}]", "S<n>/S<n>_<action>.<camera>/..._<frame>.jpg", name
+            )
         out.append((m[1], m[2], m[3], int(m[4])))
     return out
 
@@ -137,8 +138,9 @@ def _keypoints_2d(root: Path, doc: dict, path: Path, source: str, detections: st
         return part[..., :2], part[..., 2]
     det_path = root / detections
     if not det_path.is_file():
-        raise InputError(det_path, None, "the 2D detection .npy (or source='gt'/'none')",
-                         "no such file")  # fmt: skip
+        raise InputError(
+            det_path, None, "the 2D detection .npy (or source='gt'/'none')", "no such file"
+        )
     try:
         det = np.load(det_path, allow_pickle=False)
     except (OSError, ValueError) as e:
@@ -201,8 +203,7 @@ def load_h36m(
     row = {k: t for t, k in enumerate(keys)}
     unknown = sorted({samples[i][2] for i in mine} - set(rig.names))
     if unknown:
-        raise InputError(root / cameras, f"({subject!r}, camera)", f"cameras {rig.names}",
-                         unknown)  # fmt: skip
+        raise InputError(root / cameras, f"({subject!r}, camera)", f"cameras {rig.names}", unknown)
     t_of = np.array([row[samples[i][1], samples[i][3]] for i in mine])
     v_of = np.array([rig.names.index(samples[i][2]) for i in mine])
     T, V = len(keys), len(rig)

@@ -52,10 +52,26 @@ __all__ = [
 
 #: Joint order of Panoptic's ``joints19`` (the toolbox's "coco19").
 COCO19_JOINTS = (
-    "neck", "nose", "mid_hip", "left_shoulder", "left_elbow", "left_wrist", "left_hip",
-    "left_knee", "left_ankle", "right_shoulder", "right_elbow", "right_wrist", "right_hip",
-    "right_knee", "right_ankle", "left_eye", "left_ear", "right_eye", "right_ear",
-)  # fmt: skip
+    "neck",
+    "nose",
+    "mid_hip",
+    "left_shoulder",
+    "left_elbow",
+    "left_wrist",
+    "left_hip",
+    "left_knee",
+    "left_ankle",
+    "right_shoulder",
+    "right_elbow",
+    "right_wrist",
+    "right_hip",
+    "right_knee",
+    "right_ankle",
+    "left_eye",
+    "left_ear",
+    "right_eye",
+    "right_ear",
+)
 #: For each COCO-17 joint, its index in ``joints19``.
 COCO19_TO_COCO17 = tuple(COCO19_JOINTS.index(n) for n in COCO17.joints)
 #: The five HD cameras of the customary multi-person protocol (VoxelPose and successors).

@@ -75,9 +75,7 @@ class Camera:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "K", _arr(self.K, (3, 3), f"camera {self.name!r} K"))
-        object.__setattr__(
-            self, "R", validate_rotation(self.R, f"camera {self.name!r} rotation")
-        )
+        object.__setattr__(self, "R", validate_rotation(self.R, f"camera {self.name!r} rotation"))
         object.__setattr__(
             self, "t", _arr(np.ravel(self.t), (3,), f"camera {self.name!r} translation")
         )
@@ -175,9 +173,7 @@ class Rig:
     def project(self, points: np.ndarray) -> np.ndarray:
         """Project world points, shape (*, N, 3), into every view: shape (*, V, N, 2)."""
         X = np.asarray(points, dtype=float)[..., None, :, :]  # (*, 1, N, 3)
-        return project(
-            X, self.K[:, None], self.R[:, None], self.t[:, None], self.dist[:, None]
-        )
+        return project(X, self.K[:, None], self.R[:, None], self.t[:, None], self.dist[:, None])
 
 
 def camera_centers(R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -347,7 +343,9 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray | None = None):
     n = np.linalg.norm(x, axis=-1, keepdims=True)
     # Looking straight along up: pick any perpendicular x.
     alt = np.cross(z, np.broadcast_to([1.0, 0.0, 0.0], z.shape))
-    x = np.where(n > 1e-6, x / np.where(n > 1e-6, n, 1), alt / np.linalg.norm(alt, axis=-1, keepdims=True))
+    x = np.where(
+        n > 1e-6, x / np.where(n > 1e-6, n, 1), alt / np.linalg.norm(alt, axis=-1, keepdims=True)
+    )
     y = np.cross(z, x)
     R = np.stack([x, y, z], axis=-2)
     t = -np.einsum("...ij,...j->...i", R, eye)

@@ -96,7 +96,11 @@ def closest_point_to_rays(
     """
     rays = np.moveaxis(np.asarray(rays, dtype=float), axis, -3)
     o, d = rays[..., :3], rays[..., 3:]
-    w = np.ones(rays.shape[:-1]) if weights is None else np.moveaxis(np.asarray(weights, float), axis, -2)
+    w = (
+        np.ones(rays.shape[:-1])
+        if weights is None
+        else np.moveaxis(np.asarray(weights, float), axis, -2)
+    )
     ok = np.isfinite(rays).all(-1) & np.isfinite(w) & (w > 0)
     w = np.where(ok, w, 0.0)
     o, d = np.nan_to_num(o), np.nan_to_num(d)

@@ -85,9 +85,7 @@ def _prepare(keypoints, scores, rig: Rig, min_score: float):
     if sc.shape != kp.shape[:-1]:
         raise ValueError(f"scores must have shape {kp.shape[:-1]} (*, V, J), got {sc.shape}")
     if kp.shape[-3] != len(rig):
-        raise ValueError(
-            f"keypoints have {kp.shape[-3]} views but the rig has {len(rig)} cameras"
-        )
+        raise ValueError(f"keypoints have {kp.shape[-3]} views but the rig has {len(rig)} cameras")
     valid = np.isfinite(kp).all(-1) & np.isfinite(sc) & (sc > 0) & (sc >= min_score)
     xy = pixel_to_normalized(np.where(valid[..., None], kp, 0.0), rig.K[:, None], rig.dist[:, None])
     w = np.where(valid, sc, 0.0)
@@ -169,7 +167,9 @@ def _robust_block(kp, xy, w, valid, rig, masks, max_error, keep_failed):
     if keep_failed:
         fallback = np.where(feasible, mean_err, np.inf).argmin(axis=1)
         best = np.where(ok, best, fallback)
-        ok = np.isfinite(np.take_along_axis(np.where(feasible, 0.0, np.inf), best[:, None], 1)[:, 0])
+        ok = np.isfinite(
+            np.take_along_axis(np.where(feasible, 0.0, np.inf), best[:, None], 1)[:, 0]
+        )
     pts = np.take_along_axis(X, best[:, None, :, None], 1)[:, 0]
     e = np.take_along_axis(mean_err, best[:, None], 1)[:, 0]
     views = np.moveaxis(np.take_along_axis(used, best[:, None, None, :], 1)[:, 0], -1, -1)
@@ -240,7 +240,7 @@ def triangulate_robust(
     kp, xy, w, valid = _prepare(kp0, sc0, rig, min_score)
     lead = kp.shape[:-3]
     V, J = kp.shape[-3], kp.shape[-2]
-    flat = [a.reshape(-1, *a.shape[len(lead):]) for a in (kp, xy, w, valid)]
+    flat = [a.reshape(-1, *a.shape[len(lead) :]) for a in (kp, xy, w, valid)]
     masks = _subset_masks(V)
     n = flat[0].shape[0]
     pts, err, views = np.empty((n, J, 3)), np.empty((n, J)), np.empty((n, V, J), bool)

@@ -93,15 +93,24 @@ _FOREIGN: dict[str, tuple[int, tuple[int, ...]]] = {
 }
 # The joint set assumed for a number of points when nothing else says.
 _BY_COUNT = {
-    17: "coco17", 18: "coco18", 25: "body25", 26: "halpe26", 33: "blazepose33",
+    17: "coco17",
+    18: "coco18",
+    25: "body25",
+    26: "halpe26",
+    33: "blazepose33",
     133: "wholebody133",
-}  # fmt: skip
+}
 # Pose2Sim Config.toml [pose] pose_model values.
 _POSE2SIM_MODELS = {
-    "BODY_25B": "body25b", "BODY_25": "body25", "COCO": "coco18", "COCO_18": "coco18",
-    "COCO_17": "coco17", "HALPE_26": "halpe26", "COCO_133": "wholebody133",
+    "BODY_25B": "body25b",
+    "BODY_25": "body25",
+    "COCO": "coco18",
+    "COCO_18": "coco18",
+    "COCO_17": "coco17",
+    "HALPE_26": "halpe26",
+    "COCO_133": "wholebody133",
     "BLAZEPOSE": "blazepose33",
-}  # fmt: skip
+}
 _LAST_DIGITS = re.compile(r"(\d+)(?!.*\d)")
 
 
@@ -182,9 +191,11 @@ def _check_skeleton(name: str, num_joints: int) -> None:
         raise InputError(None, "skeleton", f"one of {sorted(SKELETONS)}", repr(name))
     if SKELETONS[name].num_joints != num_joints:
         raise InputError(
-            None, "skeleton", f"{num_joints} joints to match the arrays",
+            None,
+            "skeleton",
+            f"{num_joints} joints to match the arrays",
             f"{name!r} with {SKELETONS[name].num_joints} joints",
-        )  # fmt: skip
+        )
 
 
 def _check_missing(points: np.ndarray, scores: np.ndarray | None, pfield: str, sfield: str):
@@ -396,17 +407,29 @@ def save_keypoints(kp: Keypoints2D, path: str | Path) -> Path:
         if ext == ".npz":
             with open(tmp, "wb") as f:
                 np.savez_compressed(
-                    f, format=np.array(_TAG), keypoints=kp.keypoints, scores=kp.scores,
-                    skeleton=np.array(kp.skeleton), views=np.array(kp.views, dtype=str),
-                    frames=kp.frames, fps=_npz_fps(kp.fps),
-                )  # fmt: skip
+                    f,
+                    format=np.array(_TAG),
+                    keypoints=kp.keypoints,
+                    scores=kp.scores,
+                    skeleton=np.array(kp.skeleton),
+                    views=np.array(kp.views, dtype=str),
+                    frames=kp.frames,
+                    fps=_npz_fps(kp.fps),
+                )
         else:
             doc = {
-                "format": _TAG, "version": 1, "units": "pixels", "skeleton": kp.skeleton,
-                "joints": list(SKELETONS[kp.skeleton].joints), "views": kp.views,
-                "frames": kp.frames.tolist(), "fps": kp.fps, "num_people": kp.num_people,
-                "keypoints": _json_floats(kp.keypoints), "scores": kp.scores.tolist(),
-            }  # fmt: skip
+                "format": _TAG,
+                "version": 1,
+                "units": "pixels",
+                "skeleton": kp.skeleton,
+                "joints": list(SKELETONS[kp.skeleton].joints),
+                "views": kp.views,
+                "frames": kp.frames.tolist(),
+                "fps": kp.fps,
+                "num_people": kp.num_people,
+                "keypoints": _json_floats(kp.keypoints),
+                "scores": kp.scores.tolist(),
+            }
             with open(tmp, "w", encoding="utf-8") as f:
                 json.dump(doc, f, allow_nan=False)
     return path
@@ -464,8 +487,9 @@ def _detect(p: Path) -> str:
     if p.is_dir():
         files = _json_files(p) or [f for s in _view_subdirs(p) for f in _json_files(s)]
         if not files:
-            raise InputError(p, None, "a directory of JSON files, or of per-view directories",
-                             "no JSON file")  # fmt: skip
+            raise InputError(
+                p, None, "a directory of JSON files, or of per-view directories", "no JSON file"
+            )
         p = files[0]
     doc = _read_json(p)
     if isinstance(doc, dict) and doc.get("format") == _TAG:
@@ -475,9 +499,11 @@ def _detect(p: Path) -> str:
     if isinstance(doc, list) or (isinstance(doc, dict) and "annotations" in doc):
         return "coco"
     raise InputError(
-        p, None, "OpenPose ('people'), COCO ('annotations' or a list) or rmpl ('format') JSON",
+        p,
+        None,
+        "OpenPose ('people'), COCO ('annotations' or a list) or rmpl ('format') JSON",
         f"keys {sorted(doc)[:8]}" if isinstance(doc, dict) else type(doc).__name__,
-    )  # fmt: skip
+    )
 
 
 def _pose2sim_config(view_dir: Path) -> tuple[str | None, float | None]:
@@ -495,8 +521,11 @@ def _pose2sim_config(view_dir: Path) -> tuple[str | None, float | None]:
         if model is None and isinstance(pose, dict) and "pose_model" in pose:
             model = _POSE2SIM_MODELS.get(str(pose["pose_model"]).upper())
             if model is None:
-                log.warning("%s: pose_model %r is not a joint set rmpl knows; ignored",
-                            cfg, pose["pose_model"])  # fmt: skip
+                log.warning(
+                    "%s: pose_model %r is not a joint set rmpl knows; ignored",
+                    cfg,
+                    pose["pose_model"],
+                )
             else:
                 log.info("%s: reading keypoints as %s", cfg, model)
         rate = project.get("frame_rate") if isinstance(project, dict) else None
@@ -516,15 +545,20 @@ def _frame_files(d: Path) -> dict[int, Path]:
         m = _LAST_DIGITS.search(p.stem)
         if m is None:
             continue
-        frame, pattern = int(m.group(1)), p.stem[: m.start()] + "#" + p.stem[m.end():]
+        frame, pattern = int(m.group(1)), p.stem[: m.start()] + "#" + p.stem[m.end() :]
         group = groups.setdefault(pattern, {})
         if frame in group:
-            raise InputError(p, None, f"one file per frame; frame {frame} is also in "
-                             f"{group[frame].name}")  # fmt: skip
+            raise InputError(
+                p, None, f"one file per frame; frame {frame} is also in {group[frame].name}"
+            )
         group[frame] = p
     if not groups:
-        raise InputError(d, None, "JSON files named with a frame number (cam01.0000.json)",
-                         f"{len(files)} JSON files without digits")  # fmt: skip
+        raise InputError(
+            d,
+            None,
+            "JSON files named with a frame number (cam01.0000.json)",
+            f"{len(files)} JSON files without digits",
+        )
     pattern = max(groups, key=lambda k: len(groups[k]))
     skipped = len(files) - len(groups[pattern])
     if skipped:
@@ -540,9 +574,13 @@ def _triples(values, num_joints: int | None, path: Path, field: str) -> np.ndarr
         raise InputError(path, field, "a flat list of numbers x, y, c, ...", "other") from None
     counts = [num_joints] if num_joints else sorted(_BY_COUNT)
     if a.ndim != 1 or a.size not in [3 * n for n in counts]:
-        raise InputError(path, field, f"{' or '.join(str(3 * n) for n in counts)} numbers "
-                         f"(x, y, confidence for {' or '.join(map(str, counts))} joints)",
-                         f"{a.size} numbers" if a.ndim == 1 else a.shape)  # fmt: skip
+        raise InputError(
+            path,
+            field,
+            f"{' or '.join(str(3 * n) for n in counts)} numbers "
+            f"(x, y, confidence for {' or '.join(map(str, counts))} joints)",
+            f"{a.size} numbers" if a.ndim == 1 else a.shape,
+        )
     return _checked_points(a.reshape(-1, 3), path, field)
 
 
@@ -624,12 +662,20 @@ def _coco_instance(inst, path: Path, field: str, num_joints: int | None, visibil
         xy = np.array(inst["keypoints"], dtype=float)
         s = np.array(inst["keypoint_scores"], dtype=float)
     except (TypeError, ValueError):
-        raise InputError(path, f"{field}.keypoints", "[[x, y], ...] and keypoint_scores [s, ...]",
-                         "ragged or text") from None  # fmt: skip
+        raise InputError(
+            path,
+            f"{field}.keypoints",
+            "[[x, y], ...] and keypoint_scores [s, ...]",
+            "ragged or text",
+        ) from None
     counts = [num_joints] if num_joints else sorted(_BY_COUNT)
     if xy.ndim != 2 or xy.shape[1] != 2 or xy.shape[0] not in counts:
-        raise InputError(path, f"{field}.keypoints", f"[[x, y], ...] for "
-                         f"{' or '.join(map(str, counts))} joints", xy.shape)  # fmt: skip
+        raise InputError(
+            path,
+            f"{field}.keypoints",
+            f"[[x, y], ...] for {' or '.join(map(str, counts))} joints",
+            xy.shape,
+        )
     if s.shape != (xy.shape[0],):
         raise InputError(path, f"{field}.keypoint_scores", f"{xy.shape[0]} scores", s.shape)
     return _checked_points(np.concatenate([xy, s[:, None]], axis=1), path, f"{field}.keypoints")
@@ -651,15 +697,17 @@ def _mmpose_video(doc: list, path: Path, num_joints: int | None):
             raise InputError(path, f"[{i}].frame_id", "a distinct integer frame number", frame)
         if not isinstance(item["instances"], list):
             raise InputError(path, f"[{i}].instances", "a list of instances", item["instances"])
-        out[frame], num_joints = _coco_instances(item["instances"], path, f"[{i}].instances",
-                                                 num_joints)  # fmt: skip
+        out[frame], num_joints = _coco_instances(
+            item["instances"], path, f"[{i}].instances", num_joints
+        )
     return dict(sorted(out.items())), num_joints
 
 
 def _coco_dataset(doc: dict, path: Path, num_joints: int | None):
     images = doc.get("images", [])
     if not isinstance(images, list) or not all(
-            isinstance(im, dict) and "id" in im for im in images):  # fmt: skip
+        isinstance(im, dict) and "id" in im for im in images
+    ):
         raise InputError(path, "images", "a list of {id, file_name}", "other")
     if not isinstance(doc["annotations"], list):
         raise InputError(path, "annotations", "a list of annotations", type(doc["annotations"]))
@@ -670,8 +718,9 @@ def _coco_dataset(doc: dict, path: Path, num_joints: int | None):
     else:  # names without distinct numbers: the image ids are the frames
         frame_of = {im["id"]: im["id"] for im in images}
     gt = any(isinstance(a, dict) and "num_keypoints" in a for a in doc["annotations"])
-    out, num_joints = _coco_by_image(doc["annotations"], path, "annotations", num_joints,
-                                     frame_of, visibility=gt)  # fmt: skip
+    out, num_joints = _coco_by_image(
+        doc["annotations"], path, "annotations", num_joints, frame_of, visibility=gt
+    )
     for f in frame_of.values():  # images without anybody in them are frames too
         out.setdefault(f, _stack([], num_joints))
     return dict(sorted(out.items())), num_joints
@@ -697,12 +746,13 @@ def _read_rmpl(path: Path) -> Keypoints2D:
     if path.suffix.lower() == ".npz":
         data = _open_npz(path)
         fields = dict(
-            keypoints=_npz_get(data, "keypoints", path), scores=_npz_get(data, "scores", path),
+            keypoints=_npz_get(data, "keypoints", path),
+            scores=_npz_get(data, "scores", path),
             skeleton=_npz_str(data, "skeleton", path),
             views=[str(v) for v in _npz_get(data, "views", path).reshape(-1)],
             frames=_npz_get(data, "frames", path),
             fps=_fps_from_npz(_npz_get(data, "fps", path), path),
-        )  # fmt: skip
+        )
     else:
         doc = _read_json(path)
         if not isinstance(doc, dict):
@@ -721,9 +771,12 @@ def _read_rmpl(path: Path) -> Keypoints2D:
         shape = (T, V, doc["num_people"], SKELETONS[doc["skeleton"]].num_joints)
         fields = dict(
             keypoints=_json_array(doc, "keypoints", (*shape, 2), path),
-            scores=_json_array(doc, "scores", shape, path), skeleton=doc["skeleton"],
-            views=doc["views"], frames=doc["frames"], fps=doc.get("fps"),
-        )  # fmt: skip
+            scores=_json_array(doc, "scores", shape, path),
+            skeleton=doc["skeleton"],
+            views=doc["views"],
+            frames=doc["frames"],
+            fps=doc.get("fps"),
+        )
     try:
         return Keypoints2D(**fields)
     except InputError as e:

@@ -69,9 +69,15 @@ POSE_FORMATS = ("npz", "json", "trc", "c3d")
 _TAG = "rmpl.poses3d"
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}  # metres per unit
 _TRC_KEYS = (
-    "DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
-    "OrigDataStartFrame", "OrigNumFrames",
-)  # fmt: skip
+    "DataRate",
+    "CameraRate",
+    "NumFrames",
+    "NumMarkers",
+    "Units",
+    "OrigDataRate",
+    "OrigDataStartFrame",
+    "OrigNumFrames",
+)
 # Z-up world -> Y-up file: rotation by -90 degrees about X, (x, y, z) -> (x, z, -y).
 _Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
@@ -300,10 +306,16 @@ def _write_npz(poses: Poses3D, tmp: Path) -> None:
     optional = {k: getattr(poses, k) for k in ("scores", "flags", "num_views")}
     with open(tmp, "wb") as f:
         np.savez_compressed(
-            f, format=np.array(_TAG), units=np.array("m"), points=poses.points,
-            skeleton=np.array(poses.skeleton), frames=poses.frames, fps=_npz_fps(poses.fps),
-            person_ids=poses.person_ids, **{k: v for k, v in optional.items() if v is not None},
-        )  # fmt: skip
+            f,
+            format=np.array(_TAG),
+            units=np.array("m"),
+            points=poses.points,
+            skeleton=np.array(poses.skeleton),
+            frames=poses.frames,
+            fps=_npz_fps(poses.fps),
+            person_ids=poses.person_ids,
+            **{k: v for k, v in optional.items() if v is not None},
+        )
 
 
 def _npz_fields(path: Path) -> dict:
@@ -313,11 +325,14 @@ def _npz_fields(path: Path) -> dict:
         raise InputError(path, "units", f"one of {sorted(_UNITS)}", units)
     return dict(
         points=_npz_get(data, "points", path) * _UNITS[units],
-        scores=data.get("scores"), flags=data.get("flags"), num_views=data.get("num_views"),
-        skeleton=_npz_str(data, "skeleton", path), frames=_npz_get(data, "frames", path),
+        scores=data.get("scores"),
+        flags=data.get("flags"),
+        num_views=data.get("num_views"),
+        skeleton=_npz_str(data, "skeleton", path),
+        frames=_npz_get(data, "frames", path),
         fps=_fps_from_npz(_npz_get(data, "fps", path), path),
         person_ids=_npz_get(data, "person_ids", path),
-    )  # fmt: skip
+    )
 
 
 def _json_doc(poses: Poses3D) -> dict:
@@ -325,13 +340,20 @@ def _json_doc(poses: Poses3D) -> dict:
         return None if a is None else a.tolist()
 
     return {
-        "format": _TAG, "version": 1, "units": "m", "skeleton": poses.skeleton,
-        "joints": list(poses.joint_names), "fps": poses.fps, "frames": poses.frames.tolist(),
-        "person_ids": poses.person_ids.tolist(), "points": _json_floats(poses.points),
-        "scores": opt(poses.scores), "flags": opt(poses.flags),
+        "format": _TAG,
+        "version": 1,
+        "units": "m",
+        "skeleton": poses.skeleton,
+        "joints": list(poses.joint_names),
+        "fps": poses.fps,
+        "frames": poses.frames.tolist(),
+        "person_ids": poses.person_ids.tolist(),
+        "points": _json_floats(poses.points),
+        "scores": opt(poses.scores),
+        "flags": opt(poses.flags),
         "flag_values": {s.name.lower(): int(s) for s in JointSource},
         "num_views": opt(poses.num_views),
-    }  # fmt: skip
+    }
 
 
 def _json_fields(path: Path) -> dict:
@@ -355,10 +377,14 @@ def _json_fields(path: Path) -> dict:
 
     return dict(
         points=_json_array(doc, "points", (*shape, 3), path) * _UNITS[doc["units"]],
-        scores=opt("scores"), flags=opt("flags"), num_views=opt("num_views"),
-        skeleton=doc["skeleton"], frames=doc["frames"], fps=doc.get("fps"),
+        scores=opt("scores"),
+        flags=opt("flags"),
+        num_views=opt("num_views"),
+        skeleton=doc["skeleton"],
+        frames=doc["frames"],
+        fps=doc.get("fps"),
         person_ids=doc["person_ids"],
-    )  # fmt: skip
+    )
 
 
 # --------------------------------------------------------------------------- TRC
@@ -394,8 +420,12 @@ def _trc_fields(path: Path) -> dict:
     except (OSError, UnicodeDecodeError) as e:
         raise InputError(path, None, "a readable text TRC file", e) from None
     if len(lines) < 5 or not lines[0].startswith("PathFileType"):
-        raise InputError(path, "PathFileType", "a TRC header starting 'PathFileType'",
-                         lines[0][:40] if lines else "an empty file")  # fmt: skip
+        raise InputError(
+            path,
+            "PathFileType",
+            "a TRC header starting 'PathFileType'",
+            lines[0][:40] if lines else "an empty file",
+        )
     keys = [k for k in lines[1].split() if k]
     if tuple(keys) != _TRC_KEYS:
         raise InputError(path, "line 2", " ".join(_TRC_KEYS), " ".join(keys))
@@ -403,8 +433,9 @@ def _trc_fields(path: Path) -> dict:
     try:
         rate, T, M = float(values["DataRate"]), int(values["NumFrames"]), int(values["NumMarkers"])
     except (KeyError, ValueError):
-        raise InputError(path, "line 3", "DataRate, NumFrames and NumMarkers numbers",
-                         lines[2]) from None  # fmt: skip
+        raise InputError(
+            path, "line 3", "DataRate, NumFrames and NumMarkers numbers", lines[2]
+        ) from None
     units = values.get("Units")
     if units not in _UNITS:
         raise InputError(path, "Units", f"one of {sorted(_UNITS)}", units)
@@ -420,8 +451,9 @@ def _trc_fields(path: Path) -> dict:
         if len(fields) == 3 * M + 3 and fields[-1] == "":
             fields.pop()  # the tab after the last field
         if len(fields) != 3 * M + 2:
-            raise InputError(path, f"data row {i + 1}", f"{3 * M + 2} tab-separated fields",
-                             len(fields))  # fmt: skip
+            raise InputError(
+                path, f"data row {i + 1}", f"{3 * M + 2} tab-separated fields", len(fields)
+            )
         try:
             data[i] = [float(x) if x else np.nan for x in fields]
         except ValueError:
@@ -447,8 +479,12 @@ def _people_from_markers(markers: list[str], path: Path) -> tuple[str, list[int]
         want = [f"{j}_p{i}" for i in ids for j in joints]
         if markers == want:
             return name, [int(i) for i in ids]
-    raise InputError(path, "marker names", "the joints of an rmpl skeleton, per person "
-                     "with the suffix _p<id>", markers[:4])  # fmt: skip
+    raise InputError(
+        path,
+        "marker names",
+        "the joints of an rmpl skeleton, per person with the suffix _p<id>",
+        markers[:4],
+    )
 
 
 # --------------------------------------------------------------------------- C3D

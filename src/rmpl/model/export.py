@@ -28,10 +28,15 @@ def export_onnx(model: RMPL, path: str | Path) -> Path:
 
 def _export(model: RMPL, rays: torch.Tensor, scores: torch.Tensor, path) -> None:
     torch.onnx.export(
-        model, (rays, scores), str(path), input_names=["rays", "scores"], output_names=["joints"],
+        model,
+        (rays, scores),
+        str(path),
+        input_names=["rays", "scores"],
+        output_names=["joints"],
         dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}, "joints": {0: "B"}},
-        opset_version=17, dynamo=False,
-    )  # fmt: skip
+        opset_version=17,
+        dynamo=False,
+    )
 
 
 class OnnxLifter:

@@ -224,7 +224,9 @@ class RMPL(nn.Module):
         c = self.config
         B, V, J, _ = rays.shape
         if J != c.num_joints:
-            raise ValueError(f"model expects {c.num_joints} joints, got rays of shape {tuple(rays.shape)}")
+            raise ValueError(
+                f"model expects {c.num_joints} joints, got rays of shape {tuple(rays.shape)}"
+            )
         ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
         rays = torch.where(ok[..., None], rays, torch.zeros_like(rays))
         scores = torch.where(ok, scores, torch.zeros_like(scores))
@@ -245,17 +247,25 @@ class RMPL(nn.Module):
         tokens = tokens.permute(0, 2, 1, 3).reshape(B * J, V, c.dim)  # views of one joint
         fusion = self.fusion_token.expand(B * J, 1, c.dim)
         mask = torch.cat(
-            [torch.ones(B * J, 1, dtype=torch.bool, device=rays.device),
-             ok.permute(0, 2, 1).reshape(B * J, V)], 1
-        )  # fmt: skip
+            [
+                torch.ones(B * J, 1, dtype=torch.bool, device=rays.device),
+                ok.permute(0, 2, 1).reshape(B * J, V),
+            ],
+            1,
+        )
         fused = self.view_encoder(torch.cat([fusion, tokens], 1), mask)[:, 0]
         y = fused.view(B, J, c.dim) + self.anatomy
         if c.geometric:
             n = ok.sum(1).to(rays.dtype)  # (B, J)
             jf = torch.cat(
-                [base - P[:, None], valid[..., None].to(rays.dtype),
-                 (n[..., None] / 4).clamp(max=2), (n[..., None] > 0).to(rays.dtype)], -1
-            )  # fmt: skip
+                [
+                    base - P[:, None],
+                    valid[..., None].to(rays.dtype),
+                    (n[..., None] / 4).clamp(max=2),
+                    (n[..., None] > 0).to(rays.dtype),
+                ],
+                -1,
+            )
             y = y + self.joint_embed(jf)
         out = self.head(self.pose_encoder(y))
         return (base if c.geometric else P[:, None]) + out

@@ -52,9 +52,18 @@ PHENOTYPES: tuple[str, ...] = ("gender", "age", "muscle", "weight", "height", "p
 
 #: Body parts of :attr:`BodyModel.vertex_parts`, for clothing and skin colours.
 PARTS: tuple[str, ...] = (
-    "face", "hair", "eye", "neck", "torso", "upper_arm", "lower_arm", "hand",
-    "upper_leg", "lower_leg", "foot",
-)  # fmt: skip
+    "face",
+    "hair",
+    "eye",
+    "neck",
+    "torso",
+    "upper_arm",
+    "lower_arm",
+    "hand",
+    "upper_leg",
+    "lower_leg",
+    "foot",
+)
 
 _NUM_COCO = 17
 

@@ -27,9 +27,17 @@ from rmpl.geometry.camera import look_at, project
 __all__ = ["CameraPreset", "CAMERA_PRESETS", "sample_cameras", "horizontal_fov_to_focal"]
 
 _COMMON_SIZES = (
-    (640, 480), (800, 600), (1000, 1000), (1024, 768), (1032, 776), (1280, 720),
-    (1280, 960), (1440, 1080), (1600, 1200), (1920, 1080),
-)  # fmt: skip
+    (640, 480),
+    (800, 600),
+    (1000, 1000),
+    (1024, 768),
+    (1032, 776),
+    (1280, 720),
+    (1280, 960),
+    (1440, 1080),
+    (1600, 1200),
+    (1920, 1080),
+)
 
 
 @dataclass(frozen=True)
@@ -90,29 +98,56 @@ CAMERA_PRESETS: dict[str, CameraPreset] = {
     # Thesis / FACTS.md: centres uniform in x [-2.2, 2.2], y [-5.2, 5.2], z [1, 2] m, aimed
     # at the person +-0.5 m, Human3.6M intrinsics (fx ~1145 px, 1000x1000).
     "h36m": CameraPreset(
-        "h36m", "box", box=((-2.2, 2.2), (-5.2, 5.2), (1.0, 2.0)), min_distance=2.0,
-        sizes=((1000, 1000),), focal=(1140.0, 1150.0), principal_jitter=15.0,
-        aim_jitter=0.5, roll=2.0,
+        "h36m",
+        "box",
+        box=((-2.2, 2.2), (-5.2, 5.2), (1.0, 2.0)),
+        min_distance=2.0,
+        sizes=((1000, 1000),),
+        focal=(1140.0, 1150.0),
+        principal_jitter=15.0,
+        aim_jitter=0.5,
+        roll=2.0,
     ),
     # CMU Panoptic HD cameras: a dome of radius ~3 m, 1920x1080, fx 1400-1700 px.
     "panoptic": CameraPreset(
-        "panoptic", "orbit", distance=(2.5, 3.5), height=(0.5, 2.5), min_distance=2.0,
-        sizes=((1920, 1080),), focal=(1400.0, 1700.0), principal_jitter=20.0,
-        aim_jitter=0.3, roll=3.0,
+        "panoptic",
+        "orbit",
+        distance=(2.5, 3.5),
+        height=(0.5, 2.5),
+        min_distance=2.0,
+        sizes=((1920, 1080),),
+        focal=(1400.0, 1700.0),
+        principal_jitter=20.0,
+        aim_jitter=0.3,
+        roll=3.0,
     ),
     # Shelf / Campus: 1032x776, fx ~1050-1150 px, 2.5-5 m away, mounted 1.5-3 m high.
     "shelf": CameraPreset(
-        "shelf", "orbit", distance=(2.5, 5.0), height=(1.5, 3.0), min_distance=2.5,
-        sizes=((1032, 776),), focal=(1050.0, 1150.0), principal_jitter=20.0,
-        aim_jitter=0.3, roll=3.0,
+        "shelf",
+        "orbit",
+        distance=(2.5, 5.0),
+        height=(1.5, 3.0),
+        min_distance=2.5,
+        sizes=((1032, 776),),
+        focal=(1050.0, 1150.0),
+        principal_jitter=20.0,
+        aim_jitter=0.3,
+        roll=3.0,
     ),
     # Anything a user may have: 1.5-8 m, 0.3-4 m high, 35-90 deg horizontal FOV.
     "universal": CameraPreset(
-        "universal", "orbit", distance=(1.5, 8.0), height=(0.3, 4.0), min_distance=1.5,
-        sizes=_COMMON_SIZES, fov=(35.0, 90.0), principal_jitter=20.0,
-        aim_jitter=0.3, roll=5.0,
+        "universal",
+        "orbit",
+        distance=(1.5, 8.0),
+        height=(0.3, 4.0),
+        min_distance=1.5,
+        sizes=_COMMON_SIZES,
+        fov=(35.0, 90.0),
+        principal_jitter=20.0,
+        aim_jitter=0.3,
+        roll=5.0,
     ),
-}  # fmt: skip
+}
 
 
 def horizontal_fov_to_focal(fov_deg: np.ndarray, width: np.ndarray) -> np.ndarray:

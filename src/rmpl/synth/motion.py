@@ -134,8 +134,14 @@ class CocoMap:
 #: COCO joint -> CMU bone whose start is that joint (prefixed "l"/"r"): the bone carrying
 #: the joint's dofs. The wrist is where ``hand`` (wrist flexion, rx rz) starts; ``wrist``
 #: (ry) is the twisting distal forearm, its start ~7 cm above the wrist of a hanging arm.
-_CMU_BONES = {"shoulder": "humerus", "elbow": "radius", "wrist": "hand", "hip": "femur",
-              "knee": "tibia", "ankle": "foot"}  # fmt: skip
+_CMU_BONES = {
+    "shoulder": "humerus",
+    "elbow": "radius",
+    "wrist": "hand",
+    "hip": "femur",
+    "knee": "tibia",
+    "ankle": "foot",
+}
 
 
 COCO_MAPS: dict[str, CocoMap] = {

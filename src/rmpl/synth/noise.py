@@ -28,9 +28,26 @@ __all__ = ["NoiseConfig", "detect_like", "occlusion_mask"]
 # MediaPipe BlazePose on MHP renders (docs/mhp.md: elbows and wrists 16-18 px, median
 # 6.9 px over all joints, for a 479 px tall person).
 _JOINT_SIGMA = np.array(
-    [0.008, 0.008, 0.008, 0.010, 0.010, 0.013, 0.013, 0.018, 0.018,
-     0.022, 0.022, 0.020, 0.020, 0.015, 0.015, 0.016, 0.016]
-)  # fmt: skip
+    [
+        0.008,
+        0.008,
+        0.008,
+        0.010,
+        0.010,
+        0.013,
+        0.013,
+        0.018,
+        0.018,
+        0.022,
+        0.022,
+        0.020,
+        0.020,
+        0.015,
+        0.015,
+        0.016,
+        0.016,
+    ]
+)
 
 
 @dataclass(frozen=True)
@@ -191,7 +208,7 @@ def detect_like(
     # Left/right swaps of single pairs, and whole-body mirror confusions.
     pairs = np.array(COCO17.flip_pairs)
     swap = rng.random((Bn, V, len(pairs))) < cfg.swap_rate
-    swap |= (rng.random((Bn, V, 1)) < cfg.flip_rate)
+    swap |= rng.random((Bn, V, 1)) < cfg.flip_rate
     perm = np.broadcast_to(np.arange(J), (Bn, V, J)).copy()
     for k, (l, r) in enumerate(pairs):
         perm[..., l] = np.where(swap[..., k], r, perm[..., l])
@@ -201,13 +218,16 @@ def detect_like(
 
     # Missed: occluded drops, whole-person misses, truncation, outside the image.
     missed = occ & (rng.random(occ.shape) < cfg.occluded_drop)
-    missed |= (rng.random((Bn, V, 1)) < cfg.miss_view_rate)
+    missed |= rng.random((Bn, V, 1)) < cfg.miss_view_rate
     trunc = rng.random((Bn, V)) < cfg.truncate_rate
     axis = rng.integers(0, 2, (Bn, V))
     side = rng.random((Bn, V)) < 0.5
     frac = rng.uniform(0.2, 0.8, (Bn, V))
-    cut = np.where(axis == 0, lo[..., 0] + frac * (hi[..., 0] - lo[..., 0]),
-                   lo[..., 1] + frac * (hi[..., 1] - lo[..., 1]))  # fmt: skip
+    cut = np.where(
+        axis == 0,
+        lo[..., 0] + frac * (hi[..., 0] - lo[..., 0]),
+        lo[..., 1] + frac * (hi[..., 1] - lo[..., 1]),
+    )
     coord = np.where(axis[..., None] == 0, uv[..., 0], uv[..., 1])  # (B, V, J)
     beyond = np.where(side[..., None], coord > cut[..., None], coord < cut[..., None])
     missed |= trunc[..., None] & beyond

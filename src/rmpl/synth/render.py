@@ -184,14 +184,35 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return out.reshape(B, N, 3).astype(np.float32)
 
 
-_SKIN = np.array(
-    [[255, 224, 196], [241, 194, 125], [224, 172, 105], [198, 134, 66], [141, 85, 36],
-     [92, 58, 38]], float,
-) / 255  # fmt: skip
-_HAIR = np.array(
-    [[20, 17, 15], [59, 48, 36], [106, 78, 66], [167, 133, 106], [220, 208, 186],
-     [145, 85, 61], [180, 180, 180]], float,
-) / 255  # fmt: skip
+_SKIN = (
+    np.array(
+        [
+            [255, 224, 196],
+            [241, 194, 125],
+            [224, 172, 105],
+            [198, 134, 66],
+            [141, 85, 36],
+            [92, 58, 38],
+        ],
+        float,
+    )
+    / 255
+)
+_HAIR = (
+    np.array(
+        [
+            [20, 17, 15],
+            [59, 48, 36],
+            [106, 78, 66],
+            [167, 133, 106],
+            [220, 208, 186],
+            [145, 85, 61],
+            [180, 180, 180],
+        ],
+        float,
+    )
+    / 255
+)
 
 
 def _hsv_to_rgb(h: np.ndarray, s: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -264,9 +285,12 @@ def random_lighting(rng: np.random.Generator | int | None = None) -> Lighting:
     colors = tint * np.array([[rng.uniform(0.5, 0.9)], [rng.uniform(0.15, 0.4)]])
     ambient = rng.uniform(0.3, 0.55) * rng.uniform(0.9, 1.0, 3)
     return Lighting(
-        directions, colors, ambient, specular=float(rng.uniform(0, 0.25)),
+        directions,
+        colors,
+        ambient,
+        specular=float(rng.uniform(0, 0.25)),
         shininess=float(rng.uniform(4, 40)),
-    )  # fmt: skip
+    )
 
 
 def random_background(
@@ -293,9 +317,11 @@ def random_background(
     y0, x0 = np.minimum(gy.astype(int), gh - 1), np.minimum(gx.astype(int), gw - 1)
     fy, fx = (gy - y0)[..., None], (gx - x0)[..., None]
     img += (
-        grid[y0, x0] * (1 - fy) * (1 - fx) + grid[y0 + 1, x0] * fy * (1 - fx)
-        + grid[y0, x0 + 1] * (1 - fy) * fx + grid[y0 + 1, x0 + 1] * fy * fx
-    )  # fmt: skip
+        grid[y0, x0] * (1 - fy) * (1 - fx)
+        + grid[y0 + 1, x0] * fy * (1 - fx)
+        + grid[y0, x0 + 1] * (1 - fy) * fx
+        + grid[y0 + 1, x0 + 1] * fy * fx
+    )
     # Patches: rectangles (furniture, doors, posters) and ellipses.
     for _ in range(rng.integers(0, 9)):
         x_lo, x_hi = np.sort(rng.uniform(-0.1, 1.1, 2) * width)
@@ -436,8 +462,12 @@ class Renderer:
         K, R, t = np.asarray(K, float), np.asarray(R, float), np.asarray(t, float)
         size = np.asarray(size).astype(np.int64)
         V = K.shape[1] if K.ndim == 4 else -1
-        for name, a, shape in (("K", K, (B, V, 3, 3)), ("R", R, (B, V, 3, 3)),
-                               ("t", t, (B, V, 3)), ("size", size, (B, V, 2))):  # fmt: skip
+        for name, a, shape in (
+            ("K", K, (B, V, 3, 3)),
+            ("R", R, (B, V, 3, 3)),
+            ("t", t, (B, V, 3)),
+            ("size", size, (B, V, 2)),
+        ):
             if a.shape != shape:
                 raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
         rng = np.random.default_rng(rng)

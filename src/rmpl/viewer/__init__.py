@@ -121,12 +121,13 @@ def _frusta(rig: Rig, depth: float) -> list[dict]:
     for cam, (w, h) in zip(rig, sizes, strict=True):
         if not np.isfinite(w):
             w, h = 2 * cam.K[0, 2], 2 * cam.K[1, 2]
-        pix = np.array([[0, 0], [w, 0], [w, h], [0, h], [0.3 * w, 0], [0.7 * w, 0],
-                        [0.5 * w, -0.25 * h]], float)  # fmt: skip
+        pix = np.array(
+            [[0, 0], [w, 0], [w, h], [0, h], [0.3 * w, 0], [0.7 * w, 0], [0.5 * w, -0.25 * h]],
+            float,
+        )
         rays = np.linalg.solve(cam.K, np.column_stack([pix, np.ones(len(pix))]).T).T
         world = cam.center + depth * rays @ cam.R  # rows: R^T K^-1 [u, v, 1], z = depth
-        out.append({"name": cam.name, "center": cam.center, "corners": world[:4],
-                    "up": world[4:]})  # fmt: skip
+        out.append({"name": cam.name, "center": cam.center, "corners": world[:4], "up": world[4:]})
     return out
 
 
@@ -142,8 +143,9 @@ def _resolve(poses, skeleton, fps, person_ids):
         try:
             points = np.array(poses, dtype=float)
         except (TypeError, ValueError):
-            raise InputError(None, "poses", "Poses3D or an array (T, P, J, 3)",
-                             type(poses).__name__) from None  # fmt: skip
+            raise InputError(
+                None, "poses", "Poses3D or an array (T, P, J, 3)", type(poses).__name__
+            ) from None
         if points.ndim == 3:
             points = points[:, None]  # one person
     if points.ndim != 4 or points.shape[-1] != 3:
@@ -179,17 +181,26 @@ def _skeleton(skeleton, J: int) -> tuple[tuple[str, ...] | None, list[tuple[int,
         skeleton = SKELETONS[skeleton]
     if isinstance(skeleton, Skeleton):
         if skeleton.num_joints != J:
-            raise InputError(None, "skeleton", f"a skeleton of {J} joints (as the poses)",
-                             f"{skeleton.name} with {skeleton.num_joints}")  # fmt: skip
+            raise InputError(
+                None,
+                "skeleton",
+                f"a skeleton of {J} joints (as the poses)",
+                f"{skeleton.name} with {skeleton.num_joints}",
+            )
         return skeleton.joints, [tuple(b) for b in skeleton.bones]
     try:
         bones = np.asarray(skeleton, dtype=float).reshape(-1, 2)
     except (TypeError, ValueError):
-        raise InputError(None, "skeleton", "a Skeleton, a skeleton name or (a, b) joint pairs",
-                         type(skeleton).__name__) from None  # fmt: skip
+        raise InputError(
+            None,
+            "skeleton",
+            "a Skeleton, a skeleton name or (a, b) joint pairs",
+            type(skeleton).__name__,
+        ) from None
     if not ((bones == np.round(bones)).all() and (bones >= 0).all() and (bones < J).all()):
-        raise InputError(None, "skeleton", f"bones as pairs of joint indices 0..{J - 1}",
-                         bones.tolist())  # fmt: skip
+        raise InputError(
+            None, "skeleton", f"bones as pairs of joint indices 0..{J - 1}", bones.tolist()
+        )
     return None, [(int(a), int(b)) for a, b in bones]
 
 
@@ -288,16 +299,30 @@ def write_viewer(
     cams = [] if cameras is None else _frusta(cameras, depth)
     T, P, J, _ = points.shape
     meta = {
-        "title": title or path.stem, "fps": fps or 30.0, "fpsKnown": fps is not None,
-        "frames": frames.tolist(), "numFrames": T, "numPeople": P, "numJoints": J,
-        "personIds": ids.tolist(), "bones": bones,
-        "sides": [_side(names, a, b) for a, b in bones], "up": up,
+        "title": title or path.stem,
+        "fps": fps or 30.0,
+        "fpsKnown": fps is not None,
+        "frames": frames.tolist(),
+        "numFrames": T,
+        "numPeople": P,
+        "numJoints": J,
+        "personIds": ids.tolist(),
+        "bones": bones,
+        "sides": [_side(names, a, b) for a, b in bones],
+        "up": up,
         "axes": R.T.tolist(),  # rows: world x, y, z in viewer axes
-        "cameras": [{"name": c["name"], "center": (c["center"] @ R.T).tolist(),
-                     "corners": (c["corners"] @ R.T).tolist(), "up": (c["up"] @ R.T).tolist()}
-                    for c in cams],
-        "threeVersion": THREE_VERSION, **layout,
-    }  # fmt: skip
+        "cameras": [
+            {
+                "name": c["name"],
+                "center": (c["center"] @ R.T).tolist(),
+                "corners": (c["corners"] @ R.T).tolist(),
+                "up": (c["up"] @ R.T).tolist(),
+            }
+            for c in cams
+        ],
+        "threeVersion": THREE_VERSION,
+        **layout,
+    }
     data = json.dumps(meta)[:-1] + ',"points":' + _numbers(view_pts) + "}"
     page = _page(data, meta["title"])
     with atomic_path(path) as tmp:

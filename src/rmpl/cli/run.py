@@ -1,0 +1,126 @@
+"""The whole job: 2D detections (or videos) + calibration -> tracked, smoothed 3D skeletons.
+
+Stages: detection (videos/images only; cached in OUT/keypoints2d.npz), association across
+views, lifting (or triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D) and
+pictures (viewer.html, skeleton.png, reprojection.png).
+
+Examples:
+  rmpl run --calib Calib.qca.txt --keypoints pose/ --out results/
+  rmpl run --calib calibration.json --keypoints shelf_dev/ --out shelf/ --method robust
+  rmpl run --calib calib.toml --videos cam1.mp4 cam2.mp4 cam3.mp4 --out trial/
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+FORMATS = ("npz", "json", "trc", "c3d")
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    src = parser.add_mutually_exclusive_group(required=True)
+    src.add_argument(
+        "--keypoints", nargs="+", help="2D files/folders (OpenPose, COCO, rmpl, Shelf 4D)"
+    )
+    src.add_argument(
+        "--videos", nargs="+", help="one synchronised video per camera (needs rmpl[detect])"
+    )
+    src.add_argument("--images", nargs="+", help="one image folder per camera (needs rmpl[detect])")
+    parser.add_argument("--calib", required=True, help="calibration file or folder")
+    parser.add_argument("--out", required=True, help="output folder")
+    parser.add_argument("--method", default="rmpl", choices=["rmpl", "triangulate", "robust"])
+    parser.add_argument(
+        "--model", default="default", help="shipped model name or checkpoint folder"
+    )
+    parser.add_argument(
+        "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"
+    )
+    parser.add_argument("--fps", type=float, default=None, help="frame rate if the input has none")
+    parser.add_argument(
+        "--filter", default="butterworth", choices=["butterworth", "one-euro", "none"]
+    )
+    parser.add_argument("--cutoff", type=float, default=6.0, help="Butterworth cut-off, Hz")
+    parser.add_argument("--max-gap", type=int, default=20, help="fill gaps up to N frames (0: off)")
+    parser.add_argument(
+        "--up",
+        default=None,
+        choices=["x", "y", "z", "-x", "-y", "-z"],
+        help="world up axis (default: from the cameras)",
+    )
+    parser.add_argument("--formats", default="npz,json,trc,c3d", help=f"any of {','.join(FORMATS)}")
+    parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
+    parser.set_defaults(run=run)
+
+
+def _formats(text: str) -> list[str]:
+    items = [f.strip().lower().lstrip(".") for f in text.split(",") if f.strip()]
+    bad = [f for f in items if f not in FORMATS]
+    if bad or not items:
+        raise ValueError(f"--formats: expected some of {', '.join(FORMATS)}, got {text!r}")
+    return items
+
+
+def run(args: argparse.Namespace) -> int:
+    from rmpl.cli._common import load_calibration_and_2d
+    from rmpl.cli.lift import axis_vector
+    from rmpl.pipeline import RunConfig
+    from rmpl.pipeline import run as run_pipeline
+
+    formats = _formats(args.formats)
+    out = Path(args.out)
+    up = axis_vector(args.up)
+    cfg = RunConfig(
+        method=args.method,
+        model=args.model,
+        filter=args.filter,
+        cutoff=args.cutoff,
+        max_gap=args.max_gap,
+        up=None if up is None else tuple(up),
+    )
+    inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
+    poses = run_pipeline(
+        inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
+    )
+    write_all(poses, inputs, out, formats, pictures=not args.no_pictures)
+    return 0
+
+
+def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True) -> None:
+    """Every requested export plus the viewer page and the two pictures."""
+    from rmpl.io.poses import save_poses
+
+    out.mkdir(parents=True, exist_ok=True)
+    for fmt in formats:
+        if fmt in ("trc", "c3d") and not poses.fps:
+            log.warning("skipping %s: no frame rate (give --fps)", fmt.upper())
+            continue
+        save_poses(poses, out / f"poses.{fmt}")
+    ok = np.isfinite(poses.points).all(-1)
+    log.info(
+        "%d frames, %d people, %.0f%% of joints present; wrote %s",
+        len(poses.points),
+        poses.points.shape[1],
+        100 * ok.mean(),
+        out,
+    )
+    if not pictures:
+        return
+    from rmpl.viewer import write_viewer
+    from rmpl.viz import plot_reprojection, plot_skeletons
+
+    write_viewer(poses, out / "viewer.html", cameras=inputs.rig)
+    plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig)
+    busiest = int(np.argmax(ok.sum((1, 2)))) if ok.any() else 0
+    person = int(np.argmax(ok[busiest].sum(-1))) if ok.any() else 0
+    kp, sc = inputs.keypoints[:, :, 0], inputs.scores[:, :, 0]
+    if inputs.keypoints.shape[2] == 1:
+        plot_reprojection(
+            kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest
+        )
+    log.info("open %s in a browser to see the result", out / "viewer.html")
