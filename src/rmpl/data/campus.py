@@ -31,9 +31,7 @@ A folder (``root``) for dataset ``name`` ("shelf" or "campus") holds:
 
 from __future__ import annotations
 
-import collections
 import dataclasses
-import io
 import logging
 import re
 from collections.abc import Sequence
@@ -161,30 +159,10 @@ def load_actors_gt(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
 
 
 def _load_pickle(path: Path) -> object:
-    """A pickle of plain containers and numpy arrays, plus ``collections.defaultdict``."""
-    from rmpl.io.calibration import _PlainUnpickler
+    """A pickle of plain containers, numpy arrays and ``collections.defaultdict``."""
+    from rmpl.io.calibration import load_plain_pickle
 
-    extra = {
-        ("collections", "defaultdict"): collections.defaultdict,
-        ("builtins", "list"): list,  # default factories of a defaultdict
-        ("builtins", "dict"): dict,
-    }
-
-    class _Unpickler(_PlainUnpickler):
-        def find_class(self, module: str, name: str):
-            if (module, name) in extra:
-                return extra[module, name]
-            return super().find_class(module, name)
-
-    try:
-        return _Unpickler(io.BytesIO(path.read_bytes())).load()
-    except Exception as e:  # any failure of an untrusted pickle is bad input
-        raise InputError(
-            path,
-            None,
-            "a pickle of plain dicts, lists and numpy arrays",
-            f"{type(e).__name__}: {e}",
-        ) from None
+    return load_plain_pickle(path)
 
 
 def _person(item: object, path: Path, field: str) -> np.ndarray:

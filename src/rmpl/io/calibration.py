@@ -1009,6 +1009,9 @@ _PICKLE_ALLOWED = {
     ("numpy._core.numeric", "_frombuffer"),
     ("builtins", "set"),
     ("builtins", "frozenset"),
+    ("builtins", "list"),  # default factories of a defaultdict
+    ("builtins", "dict"),
+    ("collections", "defaultdict"),
 }
 
 
@@ -1023,12 +1026,13 @@ class _PlainUnpickler(pickle.Unpickler):
         return super().find_class(module, name)
 
 
-def _load_plain_pickle(path: Path) -> object:
+def load_plain_pickle(path: Path) -> object:
+    """A pickle of plain containers and numpy arrays; any other global is refused."""
     if not path.is_file():
         raise InputError(path, None, "an existing file", "no such file")
     data = path.read_bytes()
     if not data.strip():
-        raise InputError(path, None, "a non-empty calibration file", "an empty file")
+        raise InputError(path, None, "a non-empty pickle file", "an empty file")
     try:
         return _PlainUnpickler(io.BytesIO(data)).load()
     except Exception as e:  # any failure of an untrusted pickle is bad input
@@ -1042,7 +1046,7 @@ def _load_plain_pickle(path: Path) -> object:
 
 def read_h36m_pkl(path: Path, options: CalibOptions) -> Rig:
     """Read the mmpose-style H36M ``cameras.pkl`` for ``options.subject`` (T = centre, m)."""
-    src, doc = _Src(path), _load_plain_pickle(path)
+    src, doc = _Src(path), load_plain_pickle(path)
     if not isinstance(doc, dict):
         raise InputError(path, None, "a dict keyed by (subject, camera id)", type(doc).__name__)
     keys = [k for k in doc if isinstance(k, tuple) and len(k) == 2 and k[0] == options.subject]
