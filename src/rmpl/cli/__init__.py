@@ -20,6 +20,7 @@ COMMANDS = {
     "bench": "rmpl.cli.bench",
     "example": "rmpl.cli.example",
     "run": "rmpl.cli.run",
+    "generate": "rmpl.cli.generate",
 }
 
 
