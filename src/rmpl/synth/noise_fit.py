@@ -1,0 +1,310 @@
+"""Detector statistics of MHP shards, and the parametric noise model fitted to them.
+
+``rmpl generate --stats DIR`` compares the detector's keypoints in the shards of ``DIR``
+with the mesh's COCO-17 joints projected into the same views, and reports the per-joint
+pixel error, the miss rate and how confidence tracks error. It then fits the parameters of
+:class:`rmpl.synth.noise.NoiseConfig` (the fast source's detector model) to the same
+statistics, so the fast source reproduces the real detector's noise. Every fitted value is
+a simple robust statistic:
+
+- ``joint_sigma[j]``: median over unoccluded joints ``j`` of |error| / person height,
+  divided by 1.1774 (the median of a 2D Gaussian's radius is 1.1774 sigma);
+- ``occluded_sigma``: the same median on self-occluded joints (capsule test of
+  :func:`rmpl.synth.noise.occlusion_mask`) over the unoccluded one;
+- ``sigma_spread``: standard deviation of the log of each view's median normalised error,
+  minus (in quadrature) what the sampling of ~17 joints alone gives;
+- ``outlier_rate``: joints further than 15% of the person height from their true place
+  and not explained by a left/right swap;
+- ``swap_rate`` / ``flip_rate``: left/right pairs whose detections fit the swapped truth
+  better; a view with at least 6 of 8 limb and hip/shoulder pairs swapped is a flip;
+- ``miss_view_rate``: views with no detection at all; ``occluded_drop``: occluded joints
+  with score 0 in detected views; ``truncate_rate``: detected views with some in-image
+  joint at score 0;
+- ``conf_visible``, ``conf_occluded``, ``conf_slope``, ``conf_jitter``: least squares fit
+  of score = base(occluded) - slope * error / (0.05 height) and its residual spread.
+
+Not fitted (kept at their defaults): ``conf_gamma``, ``limb_radius``, ``torso_radius``.
+
+Shape glossary: ``M`` meshes, ``V`` views, ``J`` joints (17).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.errors import InputError
+from rmpl.io.atomic import atomic_path
+from rmpl.skeleton import COCO17
+
+__all__ = ["DetectorStats", "detector_stats", "fit_noise", "write_noise", "load_shards"]
+
+log = logging.getLogger(__name__)
+
+_RAYLEIGH_MEDIAN = float(np.sqrt(2 * np.log(2)))  # median radius of a unit 2D Gaussian
+_OUTLIER = 0.15  # fraction of the person height
+_SWAP_PAIRS = [
+    (COCO17.index("left_" + n), COCO17.index("right_" + n))
+    for n in ("shoulder", "elbow", "wrist", "hip", "knee", "ankle", "eye", "ear")
+]
+
+
+def load_shards(root: str | Path, keys: tuple[str, ...] | None = None) -> dict[str, np.ndarray]:
+    """Concatenate the arrays of every finished shard of an MHP directory.
+
+    Raises:
+        InputError: no shards in ``root``.
+    """
+    from rmpl.synth.generate import list_shards
+
+    paths = list_shards(root)
+    if not paths:
+        raise InputError(root, None, "an MHP directory with shard_*.npz files", "none")
+    parts: dict[str, list] = {}
+    for p in paths:
+        with np.load(p, allow_pickle=False) as z:
+            for k in keys or [k for k in z.files if k != "stats"]:
+                if k not in z.files:
+                    raise InputError(p, k, "the array", "missing")
+                parts.setdefault(k, []).append(z[k])
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
+@dataclass
+class DetectorStats:
+    """What ``--stats`` measured (see the module docstring) and the fitted noise."""
+
+    root: str
+    meshes: int
+    views: int
+    height_px: float
+    view_miss_rate: float
+    joint_table: list[dict]
+    calibration: list[dict]
+    overall: dict
+    noise: dict = field(default_factory=dict)
+
+    def markdown(self) -> str:
+        lines = [
+            f"MHP detector statistics: {self.root} ({self.meshes} meshes, {self.views} views; "
+            f"median person height {self.height_px:.0f} px; views with no detection "
+            f"{100 * self.view_miss_rate:.1f}%)",
+            "",
+            "| joint | mean px | median px | p90 px | miss % | mean score |",
+            "| --- | --- | --- | --- | --- | --- |",
+        ]
+        for r in self.joint_table:
+            lines.append(
+                f"| {r['joint']} | {r['mean_px']:.1f} | {r['median_px']:.1f} | "
+                f"{r['p90_px']:.1f} | {r['miss_pct']:.1f} | {r['mean_score']:.2f} |"
+            )
+        o = self.overall
+        lines.append(
+            f"| **all** | **{o['mean_px']:.1f}** | **{o['median_px']:.1f}** | "
+            f"**{o['p90_px']:.1f}** | **{o['miss_pct']:.1f}** | **{o['mean_score']:.2f}** |"
+        )
+        lines += [
+            "",
+            "Confidence vs error (detected joints inside the image):",
+            "",
+            "| score | joints | median px | mean px | median error / height |",
+            "| --- | --- | --- | --- | --- |",
+        ]
+        for r in self.calibration:
+            lines.append(
+                f"| {r['bin']} | {r['count']} | {r['median_px']:.1f} | {r['mean_px']:.1f} | "
+                f"{r['median_rel']:.3f} |"
+            )
+        lines += ["", "Fitted NoiseConfig:", "", "| parameter | value |", "| --- | --- |"]
+        for k, v in self.noise.items():
+            text = ", ".join(f"{x:.4f}" for x in v) if isinstance(v, list) else f"{v:.4f}"
+            lines.append(f"| {k} | {text} |")
+        return "\n".join(lines)
+
+
+def detector_stats(root: str | Path) -> DetectorStats:
+    """Error, misses and calibration of the detector in the shards of ``root``, plus the
+    fitted :class:`~rmpl.synth.noise.NoiseConfig` values (``.noise``)."""
+    from rmpl.synth.noise import NoiseConfig, occlusion_mask
+
+    keys = ("joints3d", "keypoints", "scores", "projected", "R", "t", "size", "occluded")
+    d = load_shards(root, keys)
+    det, scores, proj = d["keypoints"].astype(float), d["scores"], d["projected"].astype(float)
+    M, V, J = scores.shape
+    size = d["size"][..., None, :].astype(float)  # (M, V, 1, 2)
+    inside = np.all((proj >= -0.5) & (proj < size - 0.5), axis=-1)  # (M, V, J) true joint
+    lo, hi = proj.min(axis=2), proj.max(axis=2)
+    height = np.max(hi - lo, axis=-1)  # (M, V) person size in pixels
+    seen = scores.max(axis=-1) > 0  # (M, V) the detector found the person
+    err = np.linalg.norm(det - proj, axis=-1)  # (M, V, J), NaN where missed
+    rel = err / height[..., None]
+    centers = -np.einsum("mvji,mvj->mvi", d["R"], d["t"])
+    cfg0 = NoiseConfig()
+    occ = occlusion_mask(d["joints3d"].astype(float), centers, cfg0.limb_radius, cfg0.torso_radius)
+    pasted = d["occluded"]  # black squares: not part of the detector's own noise
+    valid = inside & seen[..., None] & (scores > 0) & ~pasted  # detected, comparable
+
+    # Left/right swaps.
+    swapped = np.zeros((M, V, len(_SWAP_PAIRS)), bool)
+    for k, (a, b) in enumerate(_SWAP_PAIRS):
+        straight = err[..., a] + err[..., b]
+        cross = np.linalg.norm(det[..., a, :] - proj[..., b, :], axis=-1) + np.linalg.norm(
+            det[..., b, :] - proj[..., a, :], axis=-1
+        )
+        apart = np.linalg.norm(proj[..., a, :] - proj[..., b, :], axis=-1) > 0.05 * height
+        ok = valid[..., a] & valid[..., b] & apart
+        swapped[..., k] = ok & (cross < 0.5 * straight)
+    pair_ok = np.stack([valid[..., a] & valid[..., b] for a, b in _SWAP_PAIRS], -1)
+    flip = swapped.sum(-1) >= 6  # (M, V)
+    n_pair = pair_ok[~flip].sum()
+    swap_rate = float(swapped[~flip].sum() / max(n_pair, 1))
+    flip_rate = float(flip[seen].mean()) if seen.any() else 0.0
+    in_swap = np.zeros_like(valid)
+    for k, (a, b) in enumerate(_SWAP_PAIRS):
+        in_swap[..., a] |= swapped[..., k] | flip
+        in_swap[..., b] |= swapped[..., k] | flip
+    clean = valid & ~in_swap
+    outlier = clean & (rel > _OUTLIER)
+    inlier = clean & ~outlier
+
+    # Per-joint sigma from unoccluded inliers (the outliers are their own parameter).
+    sigma = np.zeros(J)
+    for j in range(J):
+        r = rel[..., j][inlier[..., j] & ~occ[..., j]]
+        sigma[j] = np.median(r) / _RAYLEIGH_MEDIAN if r.size else cfg0.joint_sigma[j]
+    norm = rel / sigma  # error in units of the joint's sigma
+    occ_ratio = (
+        float(np.median(norm[inlier & occ]) / np.median(norm[inlier & ~occ]))
+        if (inlier & occ).any() and (inlier & ~occ).any()
+        else cfg0.occluded_sigma
+    )
+    # Per-view quality spread, minus what sampling ~n Rayleigh draws gives alone.
+    view_med, counts = [], []
+    for m, v in zip(*np.nonzero(seen), strict=True):
+        sel = inlier[m, v] & ~occ[m, v]
+        if sel.sum() >= 5:
+            view_med.append(np.median(norm[m, v][sel]))
+            counts.append(int(sel.sum()))
+    spread = cfg0.sigma_spread
+    if len(view_med) >= 10:
+        observed = np.var(np.log(view_med))
+        rng = np.random.default_rng(0)
+        sim = [np.median(np.hypot(*rng.standard_normal((2, c)))) for c in counts]
+        spread = float(np.sqrt(max(observed - np.var(np.log(sim)), 0.0)))
+
+    # Confidence: score = base(occluded) - slope * err / (0.05 h) + jitter.
+    x = rel[inlier] / 0.05
+    o = occ[inlier].astype(float)
+    y = scores[inlier].astype(float)
+    A = np.stack([1 - o, o, -x], -1)
+    if len(y) >= 10:
+        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+        resid = float(np.std(y - A @ coef))
+        conf_visible, conf_occluded, slope = (float(c) for c in coef)
+    else:
+        conf_visible, conf_occluded, slope, resid = (
+            cfg0.conf_visible,
+            cfg0.conf_occluded,
+            cfg0.conf_slope,
+            cfg0.conf_jitter,
+        )
+
+    in_seen = inside & seen[..., None] & ~pasted
+    truncated = (in_seen & (scores == 0)).any(-1) & seen
+    occ_seen = in_seen & occ
+    any_inside = inside.any(-1)
+    noise = {
+        "joint_sigma": [round(float(s), 5) for s in sigma],
+        "sigma_spread": round(spread, 4),
+        "occluded_sigma": round(max(occ_ratio, 1.0), 4),
+        "occluded_drop": round(float((scores[occ_seen] == 0).mean()) if occ_seen.any() else 0.0, 4),
+        "conf_visible": round(float(np.clip(conf_visible, 0, 1)), 4),
+        "conf_occluded": round(float(np.clip(conf_occluded, 0, 1)), 4),
+        "conf_slope": round(max(slope, 0.0), 4),
+        "conf_jitter": round(resid, 4),
+        "outlier_rate": round(float(outlier.sum() / max(clean.sum(), 1)), 4),
+        "swap_rate": round(swap_rate, 4),
+        "flip_rate": round(flip_rate, 4),
+        "miss_view_rate": round(float((~seen & any_inside).sum() / max(any_inside.sum(), 1)), 4),
+        "truncate_rate": round(float(truncated.sum() / max(seen.sum(), 1)), 4),
+    }
+    NoiseConfig.from_dict(noise)  # the trainer must accept it
+
+    table = []
+    joint_in = inside & ~pasted
+    for j, name in enumerate(COCO17.joints):
+        e = err[..., j][valid[..., j]]
+        table.append(
+            {
+                "joint": name,
+                "mean_px": float(e.mean()) if e.size else float("nan"),
+                "median_px": float(np.median(e)) if e.size else float("nan"),
+                "p90_px": float(np.percentile(e, 90)) if e.size else float("nan"),
+                "miss_pct": float(100 * (scores[..., j][joint_in[..., j]] == 0).mean()),
+                "mean_score": float(scores[..., j][valid[..., j]].mean()) if e.size else 0.0,
+            }
+        )
+    e = err[valid]
+    overall = {
+        "mean_px": float(e.mean()),
+        "median_px": float(np.median(e)),
+        "p90_px": float(np.percentile(e, 90)),
+        "miss_pct": float(100 * (scores[joint_in] == 0).mean()),
+        "mean_score": float(scores[valid].mean()),
+    }
+    calibration = []
+    edges = [0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0001]
+    for lo_, hi_ in zip(edges[:-1], edges[1:], strict=True):
+        sel = valid & (scores > lo_) & (scores <= hi_) if lo_ > 0 else valid & (scores <= hi_)
+        if not sel.any():
+            continue
+        calibration.append(
+            {
+                "bin": f"{lo_:.1f}-{min(hi_, 1.0):.1f}",
+                "count": int(sel.sum()),
+                "median_px": float(np.median(err[sel])),
+                "mean_px": float(err[sel].mean()),
+                "median_rel": float(np.median(rel[sel])),
+            }
+        )
+    return DetectorStats(
+        root=str(root),
+        meshes=M,
+        views=M * V,
+        height_px=float(np.median(height)),
+        view_miss_rate=float(1 - seen.mean()),
+        joint_table=table,
+        calibration=calibration,
+        overall=overall,
+        noise=noise,
+    )
+
+
+def fit_noise(root: str | Path) -> dict:
+    """Only the fitted :class:`~rmpl.synth.noise.NoiseConfig` values of ``root``'s shards."""
+    return detector_stats(root).noise
+
+
+def write_noise(stats: DetectorStats, path: str | Path) -> Path:
+    """Write the fitted noise as a TOML ``[noise]`` table (paste it into a train config) and
+    beside it ``.json`` (a flat dict for ``NoiseConfig.from_dict``), atomically."""
+    path = Path(path)
+
+    def value(v) -> str:
+        return "[" + ", ".join(repr(float(x)) for x in v) + "]" if isinstance(v, list) else repr(v)
+
+    lines = [
+        f"# Detector noise fitted by `rmpl generate --stats {stats.root}`",
+        f"# ({stats.meshes} meshes, {stats.views} views). Use as a training config's [noise].",
+        "[noise]",
+        *(f"{k} = {value(v)}" for k, v in stats.noise.items()),
+    ]
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+    with atomic_path(path.with_suffix(".json")) as tmp:
+        tmp.write_text(json.dumps(stats.noise, indent=2))
+    return path
