@@ -1,0 +1,201 @@
+"""MHP shards (``rmpl generate``) as training batches and as an evaluation set.
+
+:class:`ShardSource` has the interface of :class:`rmpl.data.synthetic.PairSource`
+(``.batch(batch_size, V, train=True) -> Batch`` and a ``.rng`` Generator whose state the
+trainer saves), so the trainer reads rendered, really-detected pairs the same way it reads
+the fast parametric ones. :class:`MixSource` draws each batch from one of several sources.
+:func:`load_mhp` returns the raw arrays for evaluation.
+
+Shape glossary: ``B`` batch, ``M`` meshes, ``V`` views, ``J`` joints (17).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.data.synthetic import Batch
+from rmpl.errors import InputError
+from rmpl.geometry.camera import rodrigues
+from rmpl.geometry.rays import rays_from_keypoints
+from rmpl.skeleton import COCO17
+
+__all__ = ["load_mhp", "ShardSource", "MixSource"]
+
+_ARRAYS = ("joints3d", "keypoints", "scores", "K", "R", "t", "size", "subject", "clip", "frame")
+
+
+def load_mhp(
+    root: str | Path,
+    subjects: Sequence[str] | None = None,
+    exclude_subjects: Sequence[str] = (),
+) -> dict[str, np.ndarray]:
+    """Read an MHP directory (every finished shard) into arrays.
+
+    Args:
+        root: a directory written by ``rmpl generate`` (``manifest.json`` + shards).
+        subjects: keep only meshes posed from these motion subjects (None = all).
+        exclude_subjects: drop meshes of these subjects (a held-out split).
+
+    Returns:
+        ``joints3d`` (M, 17, 3) metres, ``keypoints`` (M, V, 17, 2) pixels (NaN where the
+        score is 0), ``scores`` (M, V, 17), ``K`` (M, V, 3, 3), ``R`` (M, V, 3, 3),
+        ``t`` (M, V, 3), ``size`` (M, V, 2), ``subject``, ``clip``, ``frame`` (M,), and
+        ``projected`` (M, V, 17, 2) when present.
+
+    Raises:
+        InputError: not an MHP directory, another joint set, or nothing selected.
+    """
+    from rmpl.synth.generate import FORMAT, list_shards
+
+    root = Path(root)
+    manifest = root / "manifest.json"
+    if not manifest.is_file():
+        raise InputError(root, "manifest.json", "an MHP directory made by rmpl generate", "none")
+    meta = json.loads(manifest.read_text())
+    if meta.get("format") != FORMAT:
+        raise InputError(manifest, "format", repr(FORMAT), meta.get("format"))
+    if meta.get("joints") != list(COCO17.joints):
+        raise InputError(manifest, "joints", "COCO-17", meta.get("joints"))
+    shards = list_shards(root)
+    if not shards:
+        raise InputError(root, None, "finished shards (shard_*.npz)", "none")
+    parts: dict[str, list] = {}
+    for p in shards:
+        with np.load(p, allow_pickle=False) as z:
+            for k in (*_ARRAYS, "projected"):
+                if k in z.files:
+                    parts.setdefault(k, []).append(z[k])
+                elif k != "projected":
+                    raise InputError(p, k, "the array", "missing")
+    d = {k: np.concatenate(v) for k, v in parts.items()}
+    keep = np.ones(len(d["joints3d"]), bool)
+    if subjects is not None:
+        keep &= np.isin(d["subject"], list(subjects))
+    keep &= ~np.isin(d["subject"], list(exclude_subjects))
+    if not keep.any():
+        raise InputError(
+            root,
+            "subject",
+            f"meshes of subjects {subjects} not in {list(exclude_subjects)}",
+            sorted(set(d["subject"].tolist())),
+        )
+    d = {k: v[keep] for k, v in d.items()}
+    missed = d["scores"] <= 0
+    d["keypoints"] = np.where(missed[..., None], np.nan, d["keypoints"]).astype(np.float32)
+    return d
+
+
+class ShardSource:
+    """Training batches from MHP shards: each sample is one mesh seen by ``V`` of its views.
+
+    Args:
+        root: MHP directory (or several, concatenated).
+        subjects, exclude_subjects: mesh selection by motion subject (see :func:`load_mhp`).
+        drop_rate: random keypoint removal on training batches (thesis 6.11.2).
+        augment: on training batches, turn each scene about the vertical by a random angle
+            and move it up to ``shift`` metres on the floor (joints and cameras together,
+            so the 2D keypoints stay exact).
+        shift: see ``augment``, metres.
+        seed: random seed.
+    """
+
+    def __init__(
+        self,
+        root: str | Path | Sequence[str | Path],
+        subjects: Sequence[str] | None = None,
+        exclude_subjects: Sequence[str] = (),
+        drop_rate: float = 0.2,
+        augment: bool = True,
+        shift: float = 1.0,
+        seed: int | None = None,
+    ) -> None:
+        roots = [root] if isinstance(root, str | Path) else list(root)
+        parts = [load_mhp(r, subjects, exclude_subjects) for r in roots]
+        self.data = {k: np.concatenate([p[k] for p in parts]) for k in _ARRAYS}
+        if not 0 <= drop_rate < 1:
+            raise ValueError(f"drop_rate must be in [0, 1), got {drop_rate}")
+        self.drop_rate = float(drop_rate)
+        self.augment = augment
+        self.shift = float(shift)
+        self.rng = np.random.default_rng(seed)
+
+    @property
+    def num_meshes(self) -> int:
+        return len(self.data["joints3d"])
+
+    @property
+    def num_views(self) -> int:
+        return self.data["scores"].shape[1]
+
+    def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
+        """``size`` meshes, each seen by ``num_views`` of its views drawn without repeats."""
+        if not 1 <= num_views <= self.num_views:
+            raise ValueError(
+                f"num_views must be in [1, {self.num_views}] (views per mesh in the shards), "
+                f"got {num_views}"
+            )
+        rng, d = self.rng, self.data
+        idx = rng.integers(0, self.num_meshes, size)
+        views = np.argsort(rng.random((size, self.num_views)), axis=1)[:, :num_views]
+        take = (idx[:, None], views)
+        kp = d["keypoints"][take].astype(np.float64)  # (B, V, J, 2)
+        scores = d["scores"][take].astype(np.float64)
+        K, R, t = d["K"][take], d["R"][take].copy(), d["t"][take].copy()
+        target = d["joints3d"][idx].astype(np.float64)
+        if train and self.augment:
+            yaw = rng.uniform(-np.pi, np.pi, size)
+            Rz = rodrigues(np.stack([np.zeros(size), np.zeros(size), yaw], -1))  # (B, 3, 3)
+            c = np.concatenate(
+                [rng.uniform(-self.shift, self.shift, (size, 2)), np.zeros((size, 1))], -1
+            )
+            target = np.einsum("bij,bnj->bni", Rz, target) + c[:, None]
+            # x_cam = R X + t = R Rz^T (X' - c) + t
+            R = R @ np.swapaxes(Rz, -1, -2)[:, None]
+            t = t - np.einsum("bvij,bj->bvi", R, c)
+        if train and self.drop_rate > 0:
+            drop = rng.random(scores.shape) < self.drop_rate
+            scores = np.where(drop, 0.0, scores)
+        kp = np.where(scores[..., None] > 0, kp, np.nan)
+        rays = rays_from_keypoints(kp, K=K, R=R, t=t)
+        rays = np.where(scores[..., None] > 0, rays, 0.0)
+        return Batch(
+            rays.astype(np.float32),
+            scores.astype(np.float32),
+            target.astype(np.float32),
+            kp,
+            K,
+            R,
+            t,
+        )
+
+
+class MixSource:
+    """Each batch from one of several sources (e.g. MHP shards and the fast PairSource).
+
+    The sources share this object's ``rng``, so saving ``rng.bit_generator.state`` saves
+    the whole sampling state.
+
+    Args:
+        sources: objects with ``.batch(size, V, train)`` and a ``.rng`` attribute.
+        weights: probability of each source per batch (normalised).
+        seed: random seed.
+    """
+
+    def __init__(self, sources: Sequence, weights: Sequence[float], seed: int | None = None):
+        if len(sources) != len(weights) or not sources:
+            raise ValueError("need one weight per source and at least one source")
+        w = np.asarray(weights, float)
+        if np.any(w < 0) or w.sum() <= 0:
+            raise ValueError(f"weights must be >= 0 with a positive sum, got {list(weights)}")
+        self.sources, self.weights = list(sources), w / w.sum()
+        self.rng = np.random.default_rng(seed)
+        for s in self.sources:
+            s.rng = self.rng
+
+    def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
+        k = int(self.rng.choice(len(self.sources), p=self.weights))
+        return self.sources[k].batch(size, num_views, train)
