@@ -1,68 +1,176 @@
-"""Methods compared on synthetic scenes of held-out motion (same 2D input for every method)."""
+"""Methods compared on synthetic scenes of held-out motion (same 2D input for every method).
+
+Two scene generators:
+
+- :func:`evaluate_synthetic`: random camera setups (:class:`rmpl.data.synthetic.PairSource`,
+  preset "universal"), V cameras per scene, the person anywhere in a room;
+- :func:`evaluate_sphere`: the camera-geometry experiment (thesis 6.14): two cameras on a
+  sphere around the person (:func:`rmpl.synth.cameras.sphere_cameras`) at a given height,
+  the horizontal angle between them swept.
+
+In both, 2D comes from the parametric detector model (:mod:`rmpl.synth.noise`), seeded;
+keypoint dropout and calibration noise are applied identically to every method's input.
+
+Shape glossary: ``B`` scenes, ``V`` views, ``J`` joints (COCO-17). Metres inside, mm out.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
-from rmpl.data.synthetic import PairSource, SamplerConfig
+from rmpl.data.synthetic import PairSource, SamplerConfig, perturb_extrinsics, place_poses
 from rmpl.geometry.camera import Camera, Rig
-from rmpl.skeleton import KP_STAR
 
-__all__ = ["evaluate_synthetic", "synthetic_markdown"]
+__all__ = ["evaluate_synthetic", "evaluate_sphere"]
+
+ALL_JOINTS = list(range(17))
 
 
-def _per_scene(method, batch) -> np.ndarray:
+def _per_scene(method, keypoints, scores, K, R, t) -> np.ndarray:
     """Run a rig-level method scene by scene (each scene has its own cameras): (B, J, 3)."""
-    out = np.full(batch.target.shape, np.nan)
-    for i in range(len(batch.target)):
-        rig = Rig(
-            tuple(
-                Camera(batch.K[i, v], batch.R[i, v], batch.t[i, v], name=str(v))
-                for v in range(batch.K.shape[1])
-            )
-        )
-        out[i] = method(batch.keypoints[i][None], batch.scores[i][None], rig)[0]
+    B, V, J = scores.shape
+    out = np.full((B, J, 3), np.nan)
+    for i in range(B):
+        if not (scores[i] > 0).any():
+            continue
+        rig = Rig(tuple(Camera(K[i, v], R[i, v], t[i, v], name=str(v)) for v in range(V)))
+        out[i] = method(keypoints[i][None], scores[i][None], rig)[0]
     return out
 
 
+def _dropout(kp, sc, p: float, rng: np.random.Generator):
+    if p <= 0:
+        return kp, sc
+    drop = rng.random(sc.shape) < p
+    return np.where(drop[..., None], np.nan, kp), np.where(drop, 0.0, sc)
+
+
+def _row(pred: np.ndarray, target: np.ndarray, pck: float) -> dict[str, float]:
+    from rmpl.evaluate import pose_metrics
+
+    m = pose_metrics(pred, target, ALL_JOINTS, pck)
+    return {k: m[k] for k in ("mpjpe", "kpstar", "coverage", "pa_mpjpe", "pck")}
+
+
 def evaluate_synthetic(
-    poses: np.ndarray, methods: dict, view_counts, samples: int = 2000, seed: int = 7
+    poses: np.ndarray,
+    methods: dict,
+    view_counts: Sequence[int],
+    samples: int = 2000,
+    seed: int = 7,
+    dropout: Sequence[float] = (0.0,),
+    calib_noise: tuple[float, float] | None = None,
+    calib_reps: int = 1,
+    pck_threshold: float = 0.150,
+    progress: bool = True,
+    predictions: dict | None = None,
 ) -> list[dict]:
-    """MPJPE / KP* MPJPE / coverage (mm, %) per method and number of views."""
+    """MPJPE, KP* MPJPE, PA-MPJPE (mm), PCK and coverage (%) per method and view count.
+
+    Args:
+        poses: held-out COCO-17 poses, shape (N, 17, 3), metres, z up.
+        methods: name -> method (see :func:`rmpl.evaluate.make_method`).
+        view_counts: numbers of cameras per scene.
+        samples: scenes per view count (and condition).
+        seed: seed of the scenes, the 2D noise, the dropout masks and calibration noise.
+        dropout: keypoint removal probabilities (applied after the noise model).
+        calib_noise: (degrees, metres) extrinsic noise given to the methods, or None. When
+            set, each view count gets a clean and a noisy row per dropout value.
+        calib_reps: independent noise draws averaged (each draws its own scenes).
+        pck_threshold: metres.
+        progress: tqdm progress bar.
+        predictions: if a dict, filled with (views, dropout, calib, method) ->
+            (pred, target), each (B, 17, 3) metres, for per-joint breakdowns.
+
+    Returns:
+        Rows: views, method, mpjpe, kpstar, coverage, pa_mpjpe, pck, dropout, calib_noise.
+    """
     from tqdm import tqdm
 
+    calibs = [None] if calib_noise is None else [None, calib_noise]
+    jobs = [(v, p, c) for v in view_counts for c in calibs for p in dropout]
     rows = []
-    src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=seed)
-    for v in tqdm(view_counts, desc="views"):
-        batch = src.batch(samples, v, train=False)
-        for name, method in methods.items():
-            pred = _per_scene(method, batch)
-            e = np.linalg.norm(pred - batch.target, axis=-1) * 1000
-            ok = np.isfinite(e)
-            rows.append(
-                {
-                    "views": v,
-                    "method": name,
-                    "mpjpe": float(np.nanmean(e)) if ok.any() else float("nan"),
-                    "kpstar": float(np.nanmean(e[:, list(KP_STAR)]))
-                    if ok[:, list(KP_STAR)].any()
-                    else float("nan"),
-                    "coverage": float(100 * ok.mean()),
-                }
+    for ji, (v, p, calib) in enumerate(tqdm(jobs, desc="synthetic", disable=not progress)):
+        results: dict[str, list] = {m: [] for m in methods}
+        reps = calib_reps if calib is not None else 1
+        for r in range(reps):
+            # The same scenes for every condition of one view count (seeded by v and rep).
+            src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=[seed, v, r])
+            batch = src.batch(samples, v, train=False)
+            rng = np.random.default_rng([seed, 99, ji, r])
+            kp, sc = _dropout(batch.keypoints, batch.scores.astype(float), p, rng)
+            R, t = batch.R, batch.t
+            if calib is not None:
+                R, t = perturb_extrinsics(R, t, calib[0], calib[1], rng)
+            target = batch.target.astype(float)
+            for name, method in methods.items():
+                pred = _per_scene(method, kp, sc, batch.K, R, t)
+                results[name].append((pred, target))
+        for name, pairs in results.items():
+            pred = np.concatenate([a for a, _ in pairs])
+            target = np.concatenate([b for _, b in pairs])
+            if predictions is not None:
+                predictions[v, p, calib, name] = (pred, target)
+            row = {"views": v, "method": name, **_row(pred, target, pck_threshold)}
+            row["dropout"] = p
+            row["calib_noise"] = (
+                "none" if calib is None else (f"{calib[0]:g} deg, {1000 * calib[1]:g} mm")
             )
+            rows.append(row)
     return rows
 
 
-def _fmt(x: float) -> str:
-    return "—" if not np.isfinite(x) else f"{x:.1f}"
+def evaluate_sphere(
+    poses: np.ndarray,
+    methods: dict,
+    heights: Sequence[float],
+    angles: Sequence[float],
+    samples: int = 300,
+    seed: int = 7,
+    radius: float = 6.0,
+    center_height: float = 1.0,
+    pck_threshold: float = 0.150,
+    progress: bool = True,
+) -> list[dict]:
+    """The camera-geometry sweep: two cameras on a sphere, angle between them swept.
 
+    Every scene puts one held-out pose (random turn about z, mirror and size as in
+    training) with its mid-hip above the origin; the two cameras sit ``radius`` metres
+    from (0, 0, ``center_height``) at an absolute height, at azimuths -angle/2 and
+    +angle/2, aimed at that point (Human3.6M-like intrinsics, 1000 x 1000 px). The same
+    scenes and noise draws are used for every height and angle.
 
-def synthetic_markdown(rows: list[dict]) -> str:
-    lines = [
-        "| views | method | MPJPE (mm) | KP* MPJPE (mm) | coverage (%) |",
-        "|---:|---|---:|---:|---:|",
-    ]
-    for r in rows:
-        cells = [_fmt(r[k]) for k in ("mpjpe", "kpstar", "coverage")]
-        lines.append(f"| {r['views']} | {r['method']} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+    Returns:
+        Rows: height, angle, method, mpjpe, kpstar, coverage, pa_mpjpe, pck (mm, %).
+    """
+    from tqdm import tqdm
+
+    from rmpl.synth.cameras import sphere_cameras
+    from rmpl.synth.noise import detect_like
+
+    rng = np.random.default_rng([seed, 6, 14])
+    idx = rng.integers(0, len(poses), samples)
+    joints = place_poses(np.asarray(poses, float)[idx], rng, SamplerConfig(room=0.0, drop_rate=0.0))
+    rows = []
+    jobs = [(h, a) for h in heights for a in angles]
+    for h, a in tqdm(jobs, desc="sphere", disable=not progress):
+        K, R, t, wh = sphere_cameras(
+            h, [-a / 2, a / 2], radius=radius, center=(0.0, 0.0, center_height)
+        )
+        rig = Rig(tuple(Camera(K[v], R[v], t[v], size=tuple(wh[v]), name=str(v)) for v in (0, 1)))
+        B = samples
+        kp, sc = detect_like(
+            joints,
+            np.broadcast_to(K, (B, 2, 3, 3)),
+            np.broadcast_to(R, (B, 2, 3, 3)),
+            np.broadcast_to(t, (B, 2, 3)),
+            np.broadcast_to(wh, (B, 2, 2)),
+            np.random.default_rng([seed, 61]),  # the same noise draws at every point
+        )
+        for name, method in methods.items():
+            pred = method(kp, sc, rig)
+            row = {"height": float(h), "angle": float(a), "method": name}
+            rows.append(row | _row(pred, joints, pck_threshold))
+    return rows

@@ -24,7 +24,13 @@ import numpy as np
 
 from rmpl.geometry.camera import look_at, project
 
-__all__ = ["CameraPreset", "CAMERA_PRESETS", "sample_cameras", "horizontal_fov_to_focal"]
+__all__ = [
+    "CameraPreset",
+    "CAMERA_PRESETS",
+    "sample_cameras",
+    "horizontal_fov_to_focal",
+    "sphere_cameras",
+]
 
 _COMMON_SIZES = (
     (640, 480),
@@ -281,3 +287,65 @@ def sample_cameras(
         t.reshape(*shape, 3),
         size.reshape(*shape, 2),
     )
+
+
+def sphere_cameras(
+    height: float,
+    azimuths_deg,
+    radius: float = 6.0,
+    center=(0.0, 0.0, 1.0),
+    focal: float = 1145.0,
+    size: tuple[int, int] = (1000, 1000),
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Cameras on a sphere around a person, all at one height, aimed at the sphere's centre.
+
+    The camera-geometry experiment of the thesis (6.14): two cameras ``radius`` metres
+    from the person at an absolute height, the horizontal angle between them swept.
+
+    Args:
+        height: camera height above the floor (z = 0), metres.
+        azimuths_deg: horizontal direction of each camera seen from the centre, degrees,
+            shape (V,).
+        radius: distance of every camera centre from ``center``, metres.
+        center: the sphere's centre and aim point (e.g. a standing person's pelvis),
+            world metres, z up.
+        focal: focal length, pixels (default: Human3.6M's ~1145 px).
+        size: image (width, height), pixels; the principal point is its centre.
+
+    Returns:
+        K, shape (V, 3, 3), pixels; R, shape (V, 3, 3); t, shape (V, 3), metres; size,
+        shape (V, 2), int.
+
+    Raises:
+        ValueError: when the height is out of the sphere's reach or nothing is given.
+
+    >>> K, R, t, wh = sphere_cameras(2.2, [0.0, 90.0])
+    >>> centres = -np.einsum("vji,vj->vi", R, t)
+    >>> np.round(np.linalg.norm(centres - [0, 0, 1.0], axis=1), 6).tolist()
+    [6.0, 6.0]
+    >>> np.round(centres[:, 2], 6).tolist()
+    [2.2, 2.2]
+    """
+    az = np.radians(np.atleast_1d(np.asarray(azimuths_deg, dtype=float)))
+    c = np.asarray(center, dtype=float)
+    if az.ndim != 1 or az.size == 0 or not np.all(np.isfinite(az)):
+        raise ValueError(f"azimuths_deg must be finite with shape (V,), got {np.shape(az)}")
+    if c.shape != (3,) or not radius > 0 or not focal > 0:
+        raise ValueError("center must have shape (3,), radius and focal must be > 0")
+    dz = float(height) - c[2]
+    if not abs(dz) < radius:
+        raise ValueError(
+            f"camera height {height} m is out of reach of a {radius} m sphere centred at "
+            f"z = {c[2]} m"
+        )
+    horizontal = np.sqrt(radius**2 - dz**2)
+    eye = np.stack(
+        [c[0] + horizontal * np.cos(az), c[1] + horizontal * np.sin(az), np.full(az.size, height)],
+        axis=-1,
+    )
+    R, t = look_at(eye, np.broadcast_to(c, eye.shape))
+    V = az.size
+    K = np.zeros((V, 3, 3))
+    K[:, 0, 0] = K[:, 1, 1] = focal
+    K[:, 0, 2], K[:, 1, 2], K[:, 2, 2] = size[0] / 2.0, size[1] / 2.0, 1.0
+    return K, R, t, np.tile(np.asarray(size, dtype=np.int64), (V, 1))
