@@ -23,3 +23,11 @@ def shared_data() -> Path:
     if root is None:
         pytest.skip(f"shared data not found at {_DEFAULT} (set RMPL_SHARED_DATA)")
     return root
+
+
+def pytest_configure(config):
+    """One torch thread: the test models are tiny, and two spinning OpenMP threads on a
+    shared 2-core machine slow them down tenfold."""
+    import torch
+
+    torch.set_num_threads(1)

@@ -97,6 +97,11 @@ class Lifter:
     """
 
     def __init__(self, model: RMPL, meta: dict | None = None, backend: str = "auto") -> None:
+        if model.config.inputs != "rays":
+            raise ValueError(
+                f"this checkpoint is a modality-ablation model (inputs={model.config.inputs!r}); "
+                "only ray models lift real data"
+            )
         self.model = model.eval()
         self.meta = meta or {}
         if backend not in ("auto", "torch", "onnx"):

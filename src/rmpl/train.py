@@ -25,7 +25,7 @@ import torch
 from rmpl.data.synthetic import PairSource, SamplerConfig
 from rmpl.geometry.triangulate import _dlt
 from rmpl.io.atomic import atomic_path
-from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig
+from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, build_model, camera_features
 from rmpl.skeleton import COCO17, KP_STAR
 from rmpl.synth.noise import NoiseConfig
 
@@ -58,6 +58,13 @@ class TrainConfig:
         sampler: :class:`SamplerConfig` overrides.
         noise: :class:`NoiseConfig` overrides.
         time_limit: stop (with a checkpoint) after this many seconds of this invocation.
+        mhp: MHP shard directories (``rmpl generate``) to train on; empty = parametric
+            pairs only. Meshes posed from ``holdout`` subjects are left out.
+        mhp_weight: probability that a batch comes from ``mhp`` rather than from the
+            parametric source (1 = MHP only).
+        mhp_val: an MHP directory for a second validation (``mhp_kpstar_*`` in the log):
+            renders of held-out motion with their real detections (all of its meshes are
+            used: make it from the ``holdout`` subjects only).
     """
 
     poses: str = ""
@@ -79,6 +86,9 @@ class TrainConfig:
     sampler: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
     time_limit: float = 0.0
+    mhp: tuple[str, ...] = ()
+    mhp_weight: float = 1.0
+    mhp_val: str = ""
 
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
@@ -95,6 +105,8 @@ class TrainConfig:
         cfg.model_config()  # validates overrides
         SamplerConfig(**cfg.sampler)
         NoiseConfig.from_dict(cfg.noise)
+        if cfg.mhp and not 0 < cfg.mhp_weight <= 1:
+            raise ValueError(f"mhp_weight must be in (0, 1], got {cfg.mhp_weight}")
         if not 1 <= cfg.min_views <= cfg.max_views:
             raise ValueError(
                 f"need 1 <= min_views <= max_views, got {cfg.min_views}, {cfg.max_views}"
@@ -158,7 +170,7 @@ def load_checkpoint(path: str | Path) -> tuple[RMPL, dict]:
     meta = json.loads(cfg_file.read_text())
     if "model" not in meta:
         raise ValueError(f"{cfg_file}: field 'model' missing; not an rmpl checkpoint")
-    model = RMPL(RMPLConfig.from_dict(meta["model"]))
+    model = build_model(RMPLConfig.from_dict(meta["model"]))
     model.load_state_dict(load_file(str(weights)))
     return model.eval(), meta
 
@@ -170,6 +182,33 @@ def validation_sets(
     sampler = replace(SamplerConfig(**cfg.sampler), drop_rate=0.0)
     src = PairSource(poses, sampler, NoiseConfig.from_dict(cfg.noise), seed=12345)
     return {v: src.batch(cfg.val_size, v, train=False) for v in views}
+
+
+def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
+    """The parametric pair source, MHP shards, or a mix of both (see ``mhp_weight``)."""
+    sampler = SamplerConfig(**cfg.sampler)
+    pairs = PairSource(poses_train, sampler, NoiseConfig.from_dict(cfg.noise), cfg.seed)
+    if not cfg.mhp:
+        return pairs
+    from rmpl.data.mhp import MixSource, ShardSource
+
+    shards = ShardSource(
+        list(cfg.mhp), exclude_subjects=cfg.holdout, drop_rate=sampler.drop_rate, seed=cfg.seed
+    )
+    log.info("MHP: %d meshes x %d views", shards.num_meshes, shards.num_views)
+    if cfg.mhp_weight >= 1:
+        return shards
+    return MixSource([shards, pairs], [cfg.mhp_weight, 1 - cfg.mhp_weight], seed=cfg.seed)
+
+
+def _mhp_validation_sets(cfg: TrainConfig, views=(1, 2, 3, 4, 5)) -> dict[int, object]:
+    """Fixed batches of held-out MHP renders (no augmentation, no keypoint removal)."""
+    if not cfg.mhp_val:
+        return {}
+    from rmpl.data.mhp import ShardSource
+
+    src = ShardSource(cfg.mhp_val, drop_rate=0.0, augment=False, seed=54321)
+    return {v: src.batch(cfg.val_size, v, train=False) for v in views if v <= src.num_views}
 
 
 def _triangulation_mpjpe(batch) -> float:
@@ -186,13 +225,24 @@ def _triangulation_mpjpe(batch) -> float:
     return float(np.nanmean(e) * 1000) if np.isfinite(e).any() else float("nan")
 
 
+def forward_batch(model: torch.nn.Module, b) -> torch.Tensor:
+    """Run a model on a :class:`~rmpl.data.synthetic.Batch`, with the inputs its config asks
+    for (rays, or pixels [+ calibration] for the modality ablation): (B, J, 3)."""
+    rays, scores = torch.from_numpy(b.rays), torch.from_numpy(b.scores)
+    if model.config.inputs == "rays":
+        return model(rays, scores)
+    kp = torch.from_numpy(np.nan_to_num(b.keypoints).astype(np.float32))
+    cams = camera_features(*(torch.from_numpy(np.asarray(a, np.float32)) for a in (b.K, b.R, b.t)))
+    return model(rays, scores, kp, cams)
+
+
 @torch.no_grad()
 def evaluate_batches(model: RMPL, sets: dict) -> dict[str, float]:
     """KP* MPJPE (mm) of the model per number of views, and on triangulable joints."""
     model.eval()
     out = {}
     for v, b in sets.items():
-        pred = model(torch.from_numpy(b.rays), torch.from_numpy(b.scores)).numpy()
+        pred = forward_batch(model, b).numpy()
         e = np.linalg.norm(pred - b.target, axis=-1)
         out[f"mpjpe_{v}v"] = float(e.mean() * 1000)
         out[f"kpstar_{v}v"] = float(e[:, list(KP_STAR)].mean() * 1000)
@@ -220,13 +270,11 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
-    model = RMPL(cfg.model_config())
+    model = build_model(cfg.model_config())
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     state_file = out / "state.pt"
     step, elapsed = 0, 0.0
-    src = PairSource(
-        poses_train, SamplerConfig(**cfg.sampler), NoiseConfig.from_dict(cfg.noise), cfg.seed
-    )
+    src = _training_source(cfg, poses_train)
     if state_file.exists():
         state = torch.load(state_file, weights_only=False)
         model.load_state_dict(state["model"])
@@ -236,6 +284,12 @@ def train(
         log.info("resuming %s at step %d", out, step)
     sets = validation_sets(poses_val, cfg)
     tri = {f"triangulation_kpstar_{v}v": _triangulation_mpjpe(b) for v, b in sets.items() if v > 1}
+    mhp_sets = _mhp_validation_sets(cfg)
+    tri |= {
+        f"mhp_triangulation_kpstar_{v}v": _triangulation_mpjpe(b)
+        for v, b in mhp_sets.items()
+        if v > 1
+    }
     rng_views = np.random.default_rng(cfg.seed + step)
     summary = {
         "train_config": asdict(cfg),
@@ -255,7 +309,7 @@ def train(
         b = src.batch(cfg.batch_size, V)
         for g in opt.param_groups:
             g["lr"] = _lr_at(step, cfg)
-        pred = model(torch.from_numpy(b.rays), torch.from_numpy(b.scores))
+        pred = forward_batch(model, b)
         loss = (pred - torch.from_numpy(b.target)).norm(dim=-1).mean()
         if not torch.isfinite(loss):
             raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
@@ -272,6 +326,7 @@ def train(
         over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
         if step % cfg.val_every == 0 or step == cfg.steps or over_time:
             metrics = evaluate_batches(model, sets)
+            metrics |= {f"mhp_{k}": v for k, v in evaluate_batches(model, mhp_sets).items()}
             now = elapsed + time.time() - t_start
             record = {
                 "step": step,

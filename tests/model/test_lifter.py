@@ -2,7 +2,15 @@ import numpy as np
 import pytest
 import torch
 
-from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, anchors_from_rays
+from rmpl.model.lifter import (
+    PRESETS,
+    RMPL,
+    MLPLifter,
+    RMPLConfig,
+    anchors_from_rays,
+    build_model,
+    camera_features,
+)
 from rmpl.train import load_checkpoint, save_checkpoint
 
 
@@ -113,3 +121,63 @@ def test_paper_preset_size():
     assert 12.0e6 < n < 13.5e6  # the thesis reports 12.7M
     del n
     np.testing.assert_equal(PRESETS["paper"].dim, 256)
+
+
+# Ablation variants (thesis 6.4, 6.6): pixel inputs and the fully connected baseline.
+
+
+def pixel_inputs(rays, seed=0):
+    B, V, J, _ = rays.shape
+    g = torch.Generator().manual_seed(seed)
+    kp = torch.rand(B, V, J, 2, generator=g) * 1000
+    K = torch.tensor([[1000.0, 0, 500], [0, 1000, 500], [0, 0, 1]]).expand(B, V, 3, 3)
+    cams = camera_features(K, torch.eye(3).expand(B, V, 3, 3), torch.rand(B, V, 3, generator=g))
+    return kp, cams
+
+
+@pytest.mark.parametrize("inputs", ["pixels", "pixels+calib"])
+def test_pixel_models_use_their_inputs(inputs):
+    torch.manual_seed(0)
+    model = build_model(PRESETS["tiny"].with_(inputs=inputs, recenter=False, geometric=False))
+    rays, scores, _ = scene(2, 3)
+    kp, cams = pixel_inputs(rays)
+    out = model.eval()(rays, scores, kp, cams)
+    assert out.shape == (2, 17, 3)
+    assert not torch.allclose(out, model(rays, scores, kp + 50, cams))
+    # The rays themselves are not an input of a pixel model.
+    torch.testing.assert_close(out, model(rays.flip(-1), scores, kp, cams))
+    with pytest.raises(ValueError, match="needs keypoints"):
+        model(rays, scores)
+
+
+def test_pixel_inputs_cannot_be_recentered():
+    with pytest.raises(ValueError, match="recenter=false"):
+        PRESETS["tiny"].with_(inputs="pixels")
+    with pytest.raises(ValueError, match="inputs must be one of"):
+        PRESETS["tiny"].with_(inputs="depth", recenter=False, geometric=False)
+
+
+def test_mlp_baseline_shapes_masking_and_limit():
+    torch.manual_seed(0)
+    model = build_model(PRESETS["tiny"].with_(architecture="mlp", geometric=False, max_views=4))
+    assert isinstance(model, MLPLifter)
+    torch.nn.init.normal_(model.head[1].weight, std=0.1)
+    rays, scores, _ = scene(2, 3)
+    out = model.eval()(rays, scores)
+    assert out.shape == (2, 17, 3) and torch.isfinite(out).all()
+    # A fourth, fully masked view is the same as zero padding.
+    rays4 = torch.cat([rays, torch.randn(2, 1, 17, 6)], 1)
+    scores4 = torch.cat([scores, torch.zeros(2, 1, 17)], 1)
+    torch.testing.assert_close(model(rays4, scores4), out)
+    with pytest.raises(ValueError, match="at most 4 views"):
+        model(torch.cat([rays4, rays4], 1), torch.cat([scores4, scores4], 1))
+
+
+def test_mlp_checkpoint_round_trip(tmp_path):
+    model = build_model(PRESETS["tiny"].with_(architecture="mlp", geometric=False))
+    torch.nn.init.normal_(model.head[1].weight, std=0.1)
+    save_checkpoint(model, tmp_path / "ck")
+    loaded, _ = load_checkpoint(tmp_path / "ck")
+    assert isinstance(loaded, MLPLifter)
+    rays, scores, _ = scene(2, 3)
+    assert torch.equal(model.eval()(rays, scores), loaded(rays, scores))

@@ -29,8 +29,11 @@ from torch import nn
 
 from rmpl.model.layers import Encoder
 
-__all__ = ["RMPLConfig", "RMPL", "PRESETS", "anchors_from_rays"]
+__all__ = ["RMPLConfig", "RMPL", "PRESETS", "anchors_from_rays", "build_model", "camera_features"]
 
+INPUTS = ("rays", "pixels", "pixels+calib")
+ARCHITECTURES = ("transformer", "mlp")
+PIXEL_SCALE = 1000.0  # pixels: keypoints and K entries are divided by this
 ORIGIN_SCALE = 4.0  # metres: camera offsets are divided by this
 PERP_SCALE = 0.25  # metres: ray-to-anchor offsets are divided by this
 BODY_SPREAD = 0.46  # metres: RMS distance of COCO joints from their centroid across the view, adult
@@ -51,6 +54,13 @@ class RMPLConfig:
         confidence: embed the detector confidence (D/2 of each token); False zeroes it.
         recenter: express rays relative to the person anchor (thesis 6.4.3).
         geometric: per-joint anchors, perpendicular-offset features and a residual head.
+        inputs: what each view token is made of (thesis 6.6, table 6.5): ``"rays"`` (the
+            method), or for the modality ablation ``"pixels"`` (2D keypoints alone) or
+            ``"pixels+calib"`` (2D keypoints + the flattened camera K, R, t). The pixel
+            inputs cannot be recentered; they need ``recenter=False, geometric=False``.
+        architecture: ``"transformer"`` (VFT + PFT) or ``"mlp"``, the fully connected
+            baseline of thesis 6.4 (views padded to ``max_views``; not view-order invariant).
+        max_views: the most views an ``"mlp"`` model accepts.
         skeleton: name of the joint set (see :data:`rmpl.skeleton.SKELETONS`).
     """
 
@@ -64,7 +74,25 @@ class RMPLConfig:
     confidence: bool = True
     recenter: bool = True
     geometric: bool = True
+    inputs: str = "rays"
+    architecture: str = "transformer"
+    max_views: int = 8
     skeleton: str = "coco17"
+
+    def __post_init__(self) -> None:
+        if self.inputs not in INPUTS:
+            raise ValueError(f"RMPLConfig.inputs must be one of {INPUTS}, got {self.inputs!r}")
+        if self.architecture not in ARCHITECTURES:
+            raise ValueError(
+                f"RMPLConfig.architecture must be one of {ARCHITECTURES}, got {self.architecture!r}"
+            )
+        if self.inputs != "rays" and (self.recenter or self.geometric):
+            raise ValueError(
+                f"RMPLConfig.inputs={self.inputs!r} needs recenter=false and geometric=false "
+                "(recentering needs rays)"
+            )
+        if self.architecture == "mlp" and (self.inputs != "rays" or self.geometric):
+            raise ValueError("the mlp baseline takes rays with geometric=false")
 
     @classmethod
     def from_dict(cls, d: dict) -> RMPLConfig:
@@ -154,6 +182,28 @@ def anchors_from_rays(
     return X, valid, P
 
 
+def camera_features(K: torch.Tensor, R: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """Flattened calibration for the ``pixels+calib`` ablation: (*, 3, 3), (*, 3, 3), (*, 3)
+    -> (*, 16) = fx, fy, cx, cy (/1000), R (9), t (/4 m)."""
+    k = torch.stack([K[..., 0, 0], K[..., 1, 1], K[..., 0, 2], K[..., 1, 2]], -1) / PIXEL_SCALE
+    return torch.cat([k, R.flatten(-2), t / ORIGIN_SCALE], -1)
+
+
+def _pixel_features(
+    c: RMPLConfig,
+    keypoints: torch.Tensor | None,
+    cameras: torch.Tensor | None,
+    ok: torch.Tensor,
+    J: int,
+) -> list[torch.Tensor]:
+    if keypoints is None or (c.inputs == "pixels+calib" and cameras is None):
+        raise ValueError(f"a model with inputs={c.inputs!r} needs keypoints (and cameras)")
+    kp = torch.where(ok[..., None], keypoints, torch.zeros_like(keypoints)) / PIXEL_SCALE
+    if c.inputs == "pixels":
+        return [kp]
+    return [kp, cameras[:, :, None].expand(-1, -1, J, -1)]
+
+
 def _single_view_anchor(o: torch.Tensor, d: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
     """Anchor from the most confident view alone: on its mean ray, at the depth where the
     keypoints' angular spread matches a standing adult's. Shapes as in anchors_from_rays."""
@@ -186,7 +236,7 @@ class RMPL(nn.Module):
         super().__init__()
         self.config = c = config or RMPLConfig()
         half = c.dim // 2
-        ray_features = 9 if c.geometric else 6
+        ray_features = {"rays": 9 if c.geometric else 6, "pixels": 2, "pixels+calib": 18}[c.inputs]
         self.ray_embed = nn.Linear(ray_features, half)
         self.conf_embed = nn.Linear(1, c.dim - half)
         self.fusion_token = nn.Parameter(torch.zeros(1, 1, c.dim))
@@ -211,12 +261,20 @@ class RMPL(nn.Module):
     def num_parameters(self) -> int:
         return sum(p.numel() for p in self.parameters())
 
-    def forward(self, rays: torch.Tensor, scores: torch.Tensor) -> torch.Tensor:
+    def forward(
+        self,
+        rays: torch.Tensor,
+        scores: torch.Tensor,
+        keypoints: torch.Tensor | None = None,
+        cameras: torch.Tensor | None = None,
+    ) -> torch.Tensor:
         """Lift rays to 3D joints.
 
         Args:
             rays: (B, V, J, 6) origin (metres) + unit direction, in a z-up world.
             scores: (B, V, J) confidences in [0, 1]; 0 (or a non-finite ray) = missing.
+            keypoints: (B, V, J, 2) pixels; only for ``inputs="pixels"`` / ``"pixels+calib"``.
+            cameras: (B, V, 16) from :func:`camera_features`; only for ``"pixels+calib"``.
 
         Returns:
             Joints, shape (B, J, 3), world metres.
@@ -237,6 +295,8 @@ class RMPL(nn.Module):
         if not c.recenter:
             P = torch.zeros(B, 3, dtype=rays.dtype, device=rays.device)
         feats = [(o - P[:, None, None]) / ORIGIN_SCALE, d]
+        if c.inputs != "rays":
+            feats = _pixel_features(c, keypoints, cameras, ok, J)
         if c.geometric:
             rel = o - base[:, None]  # (B, V, J, 3)
             perp = rel - (rel * d).sum(-1, keepdim=True) * d
@@ -269,3 +329,60 @@ class RMPL(nn.Module):
             y = y + self.joint_embed(jf)
         out = self.head(self.pose_encoder(y))
         return (base if c.geometric else P[:, None]) + out
+
+
+class MLPLifter(nn.Module):
+    """The fully connected baseline (thesis 6.4): recentered rays + confidences of up to
+    ``max_views`` views, zero-padded and flattened, through a residual MLP to J x 3.
+
+    Same call as :class:`RMPL`; it depends on the order of the views, which the
+    transformer does not.
+    """
+
+    def __init__(self, config: RMPLConfig) -> None:
+        super().__init__()
+        self.config = c = config
+        width = 4 * c.dim
+        self.inp = nn.Linear(c.max_views * c.num_joints * 7, width)
+        self.blocks = nn.ModuleList(
+            nn.Sequential(
+                nn.LayerNorm(width),
+                nn.Linear(width, width),
+                nn.GELU(),
+                nn.Linear(width, width),
+            )
+            for _ in range(max(c.depth_pose, 1))
+        )
+        self.head = nn.Sequential(nn.LayerNorm(width), nn.Linear(width, c.num_joints * 3))
+        nn.init.zeros_(self.head[1].weight)
+        nn.init.zeros_(self.head[1].bias)
+
+    @property
+    def num_parameters(self) -> int:
+        return sum(p.numel() for p in self.parameters())
+
+    def forward(self, rays: torch.Tensor, scores: torch.Tensor, *_) -> torch.Tensor:
+        """rays (B, V, J, 6), scores (B, V, J) -> joints (B, J, 3), world metres."""
+        c = self.config
+        B, V, J, _ = rays.shape
+        if V > c.max_views or J != c.num_joints:
+            raise ValueError(
+                f"mlp model takes at most {c.max_views} views of {c.num_joints} joints, "
+                f"got rays of shape {tuple(rays.shape)}"
+            )
+        ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
+        rays = torch.where(ok[..., None], rays, torch.zeros_like(rays))
+        scores = torch.where(ok, scores, torch.zeros_like(scores))
+        P = anchors_from_rays(rays, scores)[2] if c.recenter else rays.new_zeros(B, 3)
+        o = (rays[..., :3] - P[:, None, None]) / ORIGIN_SCALE
+        x = torch.cat([o, rays[..., 3:], scores[..., None]], -1) * ok[..., None]  # (B,V,J,7)
+        x = torch.cat([x, x.new_zeros(B, c.max_views - V, J, 7)], 1).reshape(B, -1)
+        h = self.inp(x)
+        for block in self.blocks:
+            h = h + block(h)
+        return P[:, None] + self.head(h).view(B, J, 3)
+
+
+def build_model(config: RMPLConfig) -> nn.Module:
+    """The network a config describes: :class:`RMPL` or the :class:`MLPLifter` baseline."""
+    return MLPLifter(config) if config.architecture == "mlp" else RMPL(config)

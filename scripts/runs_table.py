@@ -1,0 +1,51 @@
+"""Tabulate the last validation of training runs (their ``log.jsonl``) as Markdown.
+
+Every run of one table validates on the same fixed held-out batches (CMU subject 03,
+seeded, no keypoint removal), so their rows compare like with like.
+
+Usage: python scripts/runs_table.py RUN_DIR [RUN_DIR ...] [--views 1,2,3,4,5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def last_record(run: Path) -> dict:
+    lines = (run / "log.jsonl").read_text().splitlines()
+    if not lines:
+        raise SystemExit(f"{run}/log.jsonl: no validation yet")
+    return json.loads(lines[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path)
+    parser.add_argument("--views", default="1,2,3,4,5")
+    args = parser.parse_args()
+    views = [int(v) for v in args.views.split(",")]
+    head = " | ".join(f"{v} views" for v in views)
+    print(f"| run | params | steps | minutes | KP* MPJPE (mm): {head} |")
+    print("|---|---:|---:|---:|" + "---:|" * len(views))
+    tri = None
+    for run in args.runs:
+        rec = last_record(run)
+        meta = json.loads((run / "config.json").read_text())
+        params = meta.get("training", {}).get("parameters", 0)
+        cells = " | ".join(f"{rec.get(f'kpstar_{v}v', float('nan')):.1f}" for v in views)
+        print(
+            f"| {run.name} | {params / 1e6:.2f}M | {rec['step']} | {rec['seconds'] / 60:.1f} "
+            f"| {cells} |"
+        )
+        tri = tri or rec
+    cells = " | ".join(
+        f"{tri[f'triangulation_kpstar_{v}v']:.1f}" if f"triangulation_kpstar_{v}v" in tri else "—"
+        for v in views
+    )
+    print(f"| DLT (triangulable joints only) | | | | {cells} |")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,137 @@
+"""The trainer: a tiny real run, resume after a stop, config errors, ablation variants and
+MHP shards as a source (the last skipped without anny, moderngl and mediapipe)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from rmpl.errors import InputError
+from rmpl.train import TrainConfig, load_checkpoint, train
+
+EXAMPLE = Path(__file__).parents[1] / "src/rmpl/examples/walk/ground_truth.npz"
+
+
+@pytest.fixture(scope="module")
+def poses():
+    """Real walking poses (COCO-17, metres) from the embedded example: train / validation."""
+    p = np.load(EXAMPLE)["points"][:, 0]
+    return p[:40], p[40:]
+
+
+def tiny_config(**kw) -> TrainConfig:
+    base = dict(
+        preset="tiny",
+        steps=6,
+        batch_size=8,
+        val_every=3,
+        val_size=8,
+        threads=1,
+        lr=1e-3,
+    )
+    return TrainConfig.from_dict({**base, **kw})
+
+
+def read_log(run: Path) -> list[dict]:
+    return [json.loads(line) for line in (run / "log.jsonl").read_text().splitlines()]
+
+
+def test_train_writes_checkpoint_and_resumes(poses, tmp_path):
+    run = tmp_path / "run"
+    train(tiny_config(steps=3), run, *poses)
+    assert [r["step"] for r in read_log(run)] == [3]
+    first, _ = load_checkpoint(run)
+    # Same command with more steps: continues at step 3, does not start again.
+    train(tiny_config(steps=6), run, *poses)
+    log = read_log(run)
+    assert [r["step"] for r in log] == [3, 6]
+    assert all(np.isfinite(r["kpstar_2v"]) for r in log)
+    assert torch.load(run / "state.pt", weights_only=False)["step"] == 6
+    second, meta = load_checkpoint(run)
+    assert meta["training"]["last"]["step"] == 6
+    a, b = first.state_dict(), second.state_dict()
+    assert any(not torch.equal(a[k], b[k]) for k in a)
+    assert not list(run.glob("*.part*")) and not list(run.glob("*.tmp*"))
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        {"inputs": "pixels+calib", "recenter": False, "geometric": False},
+        {"architecture": "mlp", "geometric": False},
+        {"confidence": False},
+    ],
+)
+def test_ablation_variants_train(poses, tmp_path, model):
+    run = train(tiny_config(steps=2, val_every=2, model=model), tmp_path / "run", *poses)
+    rec = read_log(run)[-1]
+    assert np.isfinite([rec[f"kpstar_{v}v"] for v in (1, 2, 3)]).all()
+    loaded, meta = load_checkpoint(run)
+    assert meta["model"] == loaded.config.to_dict()
+    for key, value in model.items():
+        assert getattr(loaded.config, key) == value
+
+
+def test_config_errors_are_clear(tmp_path):
+    with pytest.raises(ValueError, match="unknown training config keys"):
+        TrainConfig.from_dict({"stepz": 3})
+    with pytest.raises(ValueError, match="mhp_weight"):
+        TrainConfig.from_dict({"mhp": ["somewhere"], "mhp_weight": 1.5})
+    with pytest.raises(ValueError, match="recenter=false"):
+        TrainConfig.from_dict({"model": {"inputs": "pixels"}})
+    bad = tmp_path / "c.toml"
+    bad.write_text("steps = 3\n")
+    with pytest.raises(ValueError, match="key=value"):
+        TrainConfig.from_toml(bad, ["steps"])
+
+
+def test_trains_on_mhp_shards(poses, tmp_path):
+    for mod in ("anny", "moderngl", "mediapipe"):
+        pytest.importorskip(mod)
+    cache = os.environ.get("ANNY_CACHE_DIR")
+    if not cache or not Path(cache).is_dir():
+        pytest.skip("ANNY_CACHE_DIR does not point to a built anny cache")
+    from rmpl.synth.generate import GenerateConfig, generate
+
+    shards = tmp_path / "mhp"
+    generate(
+        GenerateConfig.from_dict(
+            {
+                "poses": "random",
+                "num_meshes": 2,
+                "views": 4,
+                "shard_size": 1,
+                "batch_size": 1,
+                "camera_preset": "h36m",
+                "image_size": [400, 400],
+                "seed": 3,
+            }
+        ),
+        shards,
+        progress=False,
+    )
+    # Random poses have subject "random"; nothing is held out of these tiny shards.
+    cfg = tiny_config(
+        steps=2,
+        val_every=2,
+        holdout=["nobody"],
+        mhp=[str(shards)],
+        mhp_weight=0.5,
+        mhp_val=str(shards),
+    )
+    rec = read_log(train(cfg, tmp_path / "run", *poses))[-1]
+    assert np.isfinite([rec[f"mhp_kpstar_{v}v"] for v in (1, 2, 3, 4)]).all()
+    assert "mhp_kpstar_5v" not in rec  # the shards have 4 views
+    assert np.isfinite(rec["mhp_triangulation_kpstar_4v"])
+    # Holding out the only subject leaves nothing to train on: a clear error.
+    with pytest.raises((ValueError, InputError), match="random|subject"):
+        train(
+            TrainConfig.from_dict({**cfg.__dict__, "holdout": ["random"], "mhp_weight": 1.0}),
+            tmp_path / "bad",
+            *poses,
+        )
