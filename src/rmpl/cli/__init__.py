@@ -15,6 +15,7 @@ COMMANDS = {
     "triangulate": "rmpl.cli.triangulate",
     "convert-calib": "rmpl.cli.convert_calib",
     "lift": "rmpl.cli.lift",
+    "poses": "rmpl.cli.poses",
     "train": "rmpl.cli.train",
     "evaluate": "rmpl.cli.evaluate",
     "bench": "rmpl.cli.bench",

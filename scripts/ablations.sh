@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The thesis ablations (issue 5) and the preset comparison (issue 3), as trained for
+# docs/results.md: every run is the default recipe (configs/default.toml) with one change,
+# at an equal, short budget (600 steps of 128 samples, one torch thread), validated on the
+# same fixed batches of held-out CMU subject 03. Resumable: re-run after a kill.
+#
+# Usage: scripts/ablations.sh POSE_BANK.npz RUNS_DIR [MHP_TRAIN MHP_VAL]
+#   POSE_BANK: rmpl.synth.motion.save_pose_set(load_motion_dir(CMU_DIR, fps=10))
+#   MHP_TRAIN / MHP_VAL: `scripts/make_mhp_sets.sh` output (optional: skips the MHP runs)
+# Then: python scripts/runs_table.py RUNS_DIR/abl/* ; python scripts/runs_table.py RUNS_DIR/mhp/*
+set -euo pipefail
+BANK=$1
+RUNS=$2
+MHP_TRAIN=${3:-}
+MHP_VAL=${4:-}
+T() { # name, then --set overrides
+    local name=$1
+    shift
+    rmpl train configs/default.toml --out "$RUNS/$name" --set poses="\"$BANK\"" \
+        --set steps=600 --set batch_size=128 --set val_every=200 --set threads=1 "$@"
+}
+T abl/base
+T abl/no_conf --set model.confidence=false
+T abl/recenter_only --set model.geometric=false
+T abl/literal --set model.geometric=false --set model.recenter=false
+T abl/maxv2 --set max_views=2
+T abl/maxv3 --set max_views=3
+T abl/maxv8 --set max_views=8
+T abl/calib_aug --set sampler.calib_noise_deg=2.0 --set sampler.calib_noise_m=0.02
+T abl/pixels --set 'model.inputs="pixels"' --set model.geometric=false --set model.recenter=false
+T abl/pixels_calib --set 'model.inputs="pixels+calib"' --set model.geometric=false \
+    --set model.recenter=false
+T abl/mlp --set 'model.architecture="mlp"' --set model.geometric=false
+if [ -n "$MHP_TRAIN" ]; then
+    T mhp/B_parametric --set mhp_val="\"$MHP_VAL\""
+    T mhp/C_mhp --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]"
+    T mhp/D_mix --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]" --set mhp_weight=0.5
+fi
+# Presets at an equal budget of wall time (about 10 minutes each on one thread).
+rmpl train configs/default.toml --out "$RUNS/eq/small" --set poses="\"$BANK\"" \
+    --set steps=700 --set batch_size=256 --set val_every=350 --set threads=1
+rmpl train configs/paper.toml --out "$RUNS/eq/paper" --set poses="\"$BANK\"" \
+    --set steps=250 --set batch_size=32 --set val_every=125 --set lr=3e-4 --set threads=1
