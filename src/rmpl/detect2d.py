@@ -1,0 +1,459 @@
+"""2D keypoints from synchronised videos or image folders, one person per view.
+
+Each view is run through a :class:`rmpl.synth.detect.Detector` (the same adapter the MHP
+generator uses), so any detector that follows that protocol plugs in. The default is
+MediaPipe BlazePose (``mediapipe==0.10.14``, ``model_complexity=1``, the model shipped in the
+wheel: nothing is downloaded), in static-image mode, i.e. every frame is detected afresh as
+in the training data of the shipped lifter. Videos are read with OpenCV (``cv2``, which
+comes with mediapipe). Install both with ``pip install 'rmpl[detect]'``.
+
+The result is a :class:`rmpl.io.keypoints.Keypoints2D` with one person per view (``P = 1``),
+COCO-17 joints, the views named after the files (or folders) without their suffix, frames
+numbered from 0 and, for videos, the videos' frame rate.
+
+Every input is checked before any detection runs, and bad input raises one
+:class:`rmpl.errors.InputError` naming the file: a video OpenCV cannot open or decode,
+videos of different frame counts or frame rates (both are stated), an image folder with no
+image, image folders of different lengths, an unreadable image.
+
+Detection is resumable: with ``cache_dir``, each finished view is saved there
+(``<index>_<view>.npz``) together with a fingerprint of its input (file names, sizes,
+modification times, detector name), and a later call with the same input reuses it.
+
+Shape glossary: ``T`` frames, ``V`` views, ``P`` people (1), ``J`` joints (17).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.errors import InputError
+from rmpl.io.atomic import atomic_path
+from rmpl.io.keypoints import Keypoints2D
+
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "VideoInfo",
+    "probe_video",
+    "check_videos",
+    "list_images",
+    "check_image_folders",
+    "input_fingerprint",
+    "view_names",
+    "video_frames",
+    "image_frames",
+    "detect_videos",
+    "detect_images",
+]
+
+log = logging.getLogger(__name__)
+
+#: Files of an image folder that are read as frames (case-insensitive).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+_DIGITS = re.compile(r"(\d+)")
+
+
+@dataclass(frozen=True)
+class VideoInfo:
+    """What OpenCV says about one video.
+
+    Attributes:
+        path: the file.
+        num_frames: frames in the video.
+        fps: frames per second.
+        size: (width, height), pixels.
+    """
+
+    path: Path
+    num_frames: int
+    fps: float
+    size: tuple[int, int]
+
+
+def _cv2():
+    try:
+        import cv2
+    except ImportError as e:
+        raise ImportError(
+            "reading videos and images needs OpenCV: pip install 'rmpl[detect]'"
+        ) from e
+    return cv2
+
+
+def probe_video(path: str | Path) -> VideoInfo:
+    """Open a video, decode its first frame and read its length and frame rate.
+
+    Raises:
+        InputError: no such file, not a video OpenCV can decode, no frames or no frame rate.
+    """
+    cv2 = _cv2()
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, None, "an existing video file", "no such file")
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            raise InputError(path, None, "a video file OpenCV can open", "unreadable")
+        ok, frame = cap.read()
+        if not ok or frame is None:
+            raise InputError(path, None, "a video with at least one decodable frame", "none")
+        fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        if count <= 0:  # some containers do not say: count by decoding
+            count = 1
+            while cap.grab():
+                count += 1
+    finally:
+        cap.release()
+    if not np.isfinite(fps) or fps <= 0:
+        raise InputError(path, "fps", "a video with a frame rate", fps)
+    h, w = frame.shape[:2]
+    return VideoInfo(path, count, fps, (int(w), int(h)))
+
+
+def check_videos(paths: Sequence[str | Path]) -> list[VideoInfo]:
+    """Probe every video and check they are synchronised: same frame count and frame rate.
+
+    Raises:
+        InputError: naming the offending file, with both counts or both rates.
+    """
+    if not paths:
+        raise InputError(None, "videos", "at least one video", "none")
+    infos = [probe_video(p) for p in paths]
+    first = infos[0]
+    for info in infos[1:]:
+        if info.num_frames != first.num_frames:
+            raise InputError(
+                info.path,
+                "frames",
+                f"{first.num_frames} frames like {first.path} (synchronised videos)",
+                f"{info.num_frames} frames",
+            )
+        if abs(info.fps - first.fps) > 1e-3 * first.fps:
+            raise InputError(
+                info.path,
+                "fps",
+                f"{first.fps:g} frames/s like {first.path} (synchronised videos)",
+                f"{info.fps:g} frames/s",
+            )
+    return infos
+
+
+def _natural_key(path: Path) -> tuple:
+    return tuple(int(s) if s.isdigit() else s for s in _DIGITS.split(path.name.lower()))
+
+
+def list_images(folder: str | Path) -> list[Path]:
+    """The image files of a folder (:data:`IMAGE_SUFFIXES`), in natural name order
+    (``frame2.png`` before ``frame10.png``).
+
+    Raises:
+        InputError: no such folder, or no image in it.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, None, "a folder of images", "no such folder")
+    files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES]
+    if not files:
+        raise InputError(
+            folder, None, f"a folder with image files ({', '.join(IMAGE_SUFFIXES)})", "none"
+        )
+    return sorted(files, key=_natural_key)
+
+
+def check_image_folders(folders: Sequence[str | Path]) -> list[list[Path]]:
+    """The images of each folder, checked to be non-empty, of equal length and readable by
+    OpenCV (from their headers).
+
+    Raises:
+        InputError: naming the folder with both lengths, or the unreadable file.
+    """
+    if not folders:
+        raise InputError(None, "images", "at least one image folder", "none")
+    cv2 = _cv2()
+    lists = [list_images(f) for f in folders]
+    for files in lists:
+        for f in files:
+            if not cv2.haveImageReader(str(f)):
+                raise InputError(f, None, "an image file OpenCV can read", "unreadable")
+    for folder, files in zip(folders[1:], lists[1:], strict=True):
+        if len(files) != len(lists[0]):
+            raise InputError(
+                folder,
+                "frames",
+                f"{len(lists[0])} images like {folders[0]} (one image per frame)",
+                f"{len(files)} images",
+            )
+    return lists
+
+
+def view_names(paths: Sequence[str | Path]) -> list[str]:
+    """View names from file or folder names without suffix; made distinct when they clash.
+
+    >>> view_names(["a/cam1.mp4", "b/cam2.mp4"])
+    ['cam1', 'cam2']
+    >>> view_names(["a/cam.mp4", "b/cam.mp4"])
+    ['a_cam', 'b_cam']
+    """
+    paths = [Path(p) for p in paths]
+    names = [p.stem if p.suffix else p.name for p in paths]
+    if len(set(names)) == len(names):
+        return names
+    names = [f"{p.parent.name}_{n}" for p, n in zip(paths, names, strict=True)]
+    if len(set(names)) == len(names):
+        return names
+    return [f"view{i}" for i in range(len(paths))]
+
+
+def _stat(path: Path) -> dict:
+    st = path.stat()
+    return {"path": str(path.resolve()), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
+
+
+def input_fingerprint(paths: Sequence[str | Path], kind: str) -> list:
+    """What identifies an input: per view, its files' absolute names, sizes and mtimes.
+
+    Args:
+        paths: videos (``kind="videos"``) or image folders (``kind="images"``).
+
+    Returns:
+        A JSON-serialisable list, one entry per view.
+    """
+    if kind == "videos":
+        return [_stat(Path(p)) for p in paths]
+    if kind == "images":
+        return [[_stat(f) for f in list_images(d)] for d in paths]
+    raise ValueError(f"kind must be 'videos' or 'images', got {kind!r}")
+
+
+# --------------------------------------------------------------------------- detection
+
+
+def _make_detector(detector):
+    """(detector, whether we own it and must close it)."""
+    from rmpl.synth.detect import DETECTORS, MediaPipeDetector
+
+    if detector is None:
+        return MediaPipeDetector(model_complexity=1), True
+    if isinstance(detector, str):
+        if detector not in DETECTORS:
+            raise ValueError(f"detector must be one of {sorted(DETECTORS)}, got {detector!r}")
+        return DETECTORS[detector](), True
+    return detector, False
+
+
+def _to_coco17(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    from rmpl.skeleton import convert, convert_scores
+
+    name = detector.skeleton.name
+    if name == "coco17":
+        return kp, sc
+    kp, sc = convert(kp, name, "coco17"), convert_scores(sc, name, "coco17")
+    return kp, np.where(np.isnan(kp).any(-1), 0.0, sc)
+
+
+def _detect_stream(
+    frames: Iterator[np.ndarray], num_frames: int, detector, batch: int, desc: str, progress
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run the detector over RGB frames, ``batch`` at a time: (T, J, 2), (T, J)."""
+    from tqdm import tqdm
+
+    kps, scs, chunk = [], [], []
+    with tqdm(total=num_frames, desc=desc, unit="frame", disable=not progress) as bar:
+        for image in frames:
+            chunk.append(image)
+            if len(chunk) == batch:
+                kp, sc = detector(chunk)
+                kps.append(kp)
+                scs.append(sc)
+                bar.update(len(chunk))
+                chunk = []
+        if chunk:
+            kp, sc = detector(chunk)
+            kps.append(kp)
+            scs.append(sc)
+            bar.update(len(chunk))
+    kp, sc = np.concatenate(kps), np.concatenate(scs)
+    return _to_coco17(detector, kp, sc)
+
+
+def video_frames(info: VideoInfo) -> Iterator[np.ndarray]:
+    """The frames of a probed video, RGB uint8 (H, W, 3); InputError if it ends early."""
+    cv2 = _cv2()
+    cap = cv2.VideoCapture(str(info.path))
+    try:
+        for t in range(info.num_frames):
+            ok, frame = cap.read()
+            if not ok or frame is None:
+                raise InputError(
+                    info.path,
+                    "frames",
+                    f"{info.num_frames} decodable frames, as the video's header says",
+                    f"only {t}",
+                )
+            yield cv2.cvtColor(frame, cv2.COLOR_BGR2RGB)
+    finally:
+        cap.release()
+
+
+def image_frames(files: list[Path]) -> Iterator[np.ndarray]:
+    """Read images as RGB uint8 (H, W, 3); InputError naming an unreadable file."""
+    cv2 = _cv2()
+    for f in files:
+        image = cv2.imread(str(f), cv2.IMREAD_COLOR)
+        if image is None:
+            raise InputError(f, None, "an image file OpenCV can read", "unreadable")
+        yield cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def _cached_view(path: Path, stamp: str) -> tuple[np.ndarray, np.ndarray] | None:
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["stamp"]) != stamp:
+                return None
+            return data["keypoints"], data["scores"]
+    except (OSError, KeyError, ValueError):
+        log.warning("ignoring an unreadable detection cache %s", path)
+        return None
+
+
+def _save_view(path: Path, stamp: str, kp: np.ndarray, sc: np.ndarray) -> None:
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, stamp=np.array(stamp), keypoints=kp, scores=sc)
+
+
+def _detector_name(detector) -> str:
+    if detector is None:
+        return "mediapipe"
+    return detector if isinstance(detector, str) else str(getattr(detector, "name", "?"))
+
+
+def _detect_views(
+    names: list[str],
+    fingerprint: list,
+    num_frames: int,
+    frames_of: Callable[[int], Iterator[np.ndarray]],
+    detector,
+    batch: int,
+    cache_dir: str | Path | None,
+    progress: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Detect every view (or reuse its cache): (T, V, 1, J, 2), (T, V, 1, J)."""
+    det, owned = None, False
+    kps, scs = [], []
+    try:
+        for v, name in enumerate(names):
+            cache = None if cache_dir is None else Path(cache_dir) / f"{v:02d}_{name}.npz"
+            stamp = json.dumps({"input": fingerprint[v], "detector": _detector_name(detector)})
+            hit = None if cache is None else _cached_view(cache, stamp)
+            if hit is not None and hit[0].shape[0] == num_frames:
+                log.info("view %s: reusing detections from %s", name, cache)
+                kp, sc = hit
+            else:
+                if det is None:
+                    det, owned = _make_detector(detector)
+                kp, sc = _detect_stream(
+                    frames_of(v), num_frames, det, batch, f"detect {name}", progress
+                )
+                if cache is not None:
+                    _save_view(cache, stamp, kp, sc)
+            kps.append(kp)
+            scs.append(sc)
+    finally:
+        if owned:
+            det.close()
+    return np.stack(kps, axis=1)[:, :, None], np.stack(scs, axis=1)[:, :, None]
+
+
+def detect_videos(
+    paths: Sequence[str | Path],
+    detector=None,
+    *,
+    batch: int = 8,
+    cache_dir: str | Path | None = None,
+    progress: bool = True,
+) -> Keypoints2D:
+    """Detect one person per frame in each of several synchronised videos.
+
+    Args:
+        paths: one video per camera, any format OpenCV (FFmpeg) decodes.
+        detector: a :class:`rmpl.synth.detect.Detector`, a name from
+            :data:`rmpl.synth.detect.DETECTORS`, or None for MediaPipe BlazePose
+            (``model_complexity=1``). A detector passed in is not closed.
+        batch: frames handed to the detector at a time.
+        cache_dir: folder for per-view results, to resume an interrupted run (optional).
+        progress: show a progress bar per view.
+
+    Returns:
+        COCO-17 keypoints (T, V, 1, 17, 2) in pixels, scores (T, V, 1, 17); views named after
+        the files, frames 0..T-1, the videos' frame rate.
+
+    Raises:
+        InputError: bad input (see the module docstring), before any detection runs.
+    """
+    infos = check_videos(paths)
+    names = view_names(paths)
+    T = infos[0].num_frames
+    kp, sc = _detect_views(
+        names,
+        input_fingerprint(paths, "videos"),
+        T,
+        lambda v: video_frames(infos[v]),
+        detector,
+        batch,
+        cache_dir,
+        progress,
+    )
+    return Keypoints2D(kp, sc, "coco17", names, np.arange(T), infos[0].fps)
+
+
+def detect_images(
+    folders: Sequence[str | Path],
+    detector=None,
+    *,
+    fps: float | None = None,
+    batch: int = 8,
+    cache_dir: str | Path | None = None,
+    progress: bool = True,
+) -> Keypoints2D:
+    """Detect one person per image in each of several folders of synchronised frames.
+
+    Image ``i`` (in natural name order) of every folder is frame ``i``.
+
+    Args:
+        folders: one folder of images per camera, all of the same length.
+        detector, batch, cache_dir, progress: as in :func:`detect_videos`.
+        fps: frame rate to record, if known.
+
+    Returns:
+        COCO-17 keypoints (T, V, 1, 17, 2) in pixels, scores (T, V, 1, 17); views named after
+        the folders, frames 0..T-1.
+
+    Raises:
+        InputError: bad input (see the module docstring), before any detection runs (an
+            image whose header is fine but whose data is corrupt is found when its turn
+            comes).
+    """
+    files = check_image_folders(folders)
+    names = view_names(folders)
+    T = len(files[0])
+    kp, sc = _detect_views(
+        names,
+        input_fingerprint(folders, "images"),
+        T,
+        lambda v: image_frames(files[v]),
+        detector,
+        batch,
+        cache_dir,
+        progress,
+    )
+    return Keypoints2D(kp, sc, "coco17", names, np.arange(T), fps)

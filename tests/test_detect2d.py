@@ -1,0 +1,345 @@
+"""2D detection from videos and image folders (rmpl.detect2d) and ``rmpl run --videos``.
+
+The bad-input and cache tests need only OpenCV and use a stand-in detector. The end-to-end
+test runs the real MediaPipe detector on videos of an anny body rendered here, so it needs
+mediapipe, moderngl (EGL), anny and a built anny cache in ANNY_CACHE_DIR:
+
+    ANNY_CACHE_DIR=/work/cache/anny /work/venv-synth/bin/python -m pytest tests/test_detect2d.py
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rmpl.cli import main
+from rmpl.errors import InputError
+from rmpl.geometry.camera import Camera, Rig, look_at
+from rmpl.io.calibration import save_rig
+from rmpl.skeleton import COCO17
+
+cv2 = pytest.importorskip("cv2")
+
+from rmpl.detect2d import (  # noqa: E402  (after the importorskip)
+    check_image_folders,
+    check_videos,
+    detect_images,
+    detect_videos,
+)
+
+
+def write_video(path: Path, frames: list[np.ndarray], fps: float = 25.0) -> Path:
+    """RGB uint8 frames (H, W, 3) -> an mp4 (MPEG-4 part 2, which OpenCV's wheels encode)."""
+    h, w = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+    assert writer.isOpened()
+    for f in frames:
+        writer.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+    writer.release()
+    return path
+
+
+def _frames(n: int, seed: int = 0, size=(96, 64)) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [rng.integers(0, 255, (size[1], size[0], 3), dtype=np.uint8) for _ in range(n)]
+
+
+class CountingDetector:
+    """A stand-in Detector: the mean brightness of each image as every joint's x."""
+
+    name = "counting"
+    skeleton = COCO17
+
+    def __init__(self) -> None:
+        self.images = 0
+
+    def __call__(self, images):
+        self.images += len(images)
+        kp = np.zeros((len(images), 17, 2))
+        kp[..., 0] = np.array([im.mean() for im in images])[:, None]
+        kp[..., 1] = np.arange(17)
+        return kp, np.full((len(images), 17), 0.5)
+
+
+def _rig(n: int) -> Rig:
+    K = np.array([[100.0, 0, 48], [0, 100, 32], [0, 0, 1]])
+    cams = []
+    for v in range(n):
+        a = 2 * np.pi * v / n
+        R, t = look_at(np.array([4 * np.cos(a), 4 * np.sin(a), 1.5]), np.array([0.0, 0, 1]))
+        cams.append(Camera(K, R, t, size=(96, 64), name=f"cam{v}"))
+    return Rig(tuple(cams))
+
+
+# --------------------------------------------------------------------------- readers
+
+
+def test_detect_videos_shapes_names_fps_and_resume(tmp_path):
+    paths = [write_video(tmp_path / f"c{v}.mp4", _frames(4, v), fps=30) for v in range(2)]
+    det = CountingDetector()
+    kp = detect_videos(paths, det, batch=3, cache_dir=tmp_path / "cache", progress=False)
+    assert kp.keypoints.shape == (4, 2, 1, 17, 2) and kp.scores.shape == (4, 2, 1, 17)
+    assert kp.views == ["c0", "c1"] and kp.fps == pytest.approx(30)
+    assert kp.frames.tolist() == [0, 1, 2, 3] and det.images == 8
+    # The two videos differ, so do the detections (frames are not mixed up between views).
+    assert not np.allclose(kp.keypoints[:, 0], kp.keypoints[:, 1])
+    again = detect_videos(paths, det, cache_dir=tmp_path / "cache", progress=False)
+    assert det.images == 8  # every view came from the resume cache
+    np.testing.assert_array_equal(again.keypoints, kp.keypoints)
+    write_video(paths[1], _frames(4, 7), fps=30)  # a new video under the same name
+    detect_videos(paths, det, cache_dir=tmp_path / "cache", progress=False)
+    assert det.images == 12  # only that view ran again
+
+
+def test_detect_images_natural_order(tmp_path):
+    for v in range(2):
+        d = tmp_path / f"cam{v}"
+        d.mkdir()
+        for i, im in enumerate(_frames(11, v)):
+            cv2.imwrite(str(d / f"img{i}.png"), im)
+        (d / "notes.txt").write_text("not an image")
+    det = CountingDetector()
+    kp = detect_images([tmp_path / "cam0", tmp_path / "cam1"], det, fps=10, progress=False)
+    assert kp.keypoints.shape == (11, 2, 1, 17, 2) and kp.views == ["cam0", "cam1"]
+    # img10 is frame 10, not frame 2 (natural order): its brightness is at row 10.
+    want = cv2.imread(str(tmp_path / "cam1" / "img10.png")).mean()
+    assert kp.keypoints[10, 1, 0, 0, 0] == pytest.approx(want)
+
+
+def test_bad_videos_name_the_file(tmp_path):
+    a = write_video(tmp_path / "a.mp4", _frames(5))
+    short = write_video(tmp_path / "short.mp4", _frames(3))
+    slow = write_video(tmp_path / "slow.mp4", _frames(5), fps=12.5)
+    junk = tmp_path / "junk.mp4"
+    junk.write_text("this is not a video")
+    with pytest.raises(InputError, match=r"short\.mp4.*5 frames.*got 3 frames"):
+        check_videos([a, short])
+    with pytest.raises(InputError, match=r"slow\.mp4.*25 frames/s.*got 12\.5 frames/s"):
+        check_videos([a, slow])
+    with pytest.raises(InputError, match=r"junk\.mp4"):
+        check_videos([a, junk])
+    with pytest.raises(InputError, match=r"nope\.mp4.*no such file"):
+        check_videos([a, tmp_path / "nope.mp4"])
+
+
+def test_bad_image_folders(tmp_path):
+    for name, n in (("a", 3), ("b", 2)):
+        (tmp_path / name).mkdir()
+        for i, im in enumerate(_frames(n)):
+            cv2.imwrite(str(tmp_path / name / f"{i}.jpg"), im)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(InputError, match=r"empty.*image files"):
+        check_image_folders([tmp_path / "a", tmp_path / "empty"])
+    with pytest.raises(InputError, match=r"b.*3 images.*got 2 images"):
+        check_image_folders([tmp_path / "a", tmp_path / "b"])
+    (tmp_path / "b" / "2.jpg").write_text("broken")
+    with pytest.raises(InputError, match=r"2\.jpg.*OpenCV can read"):
+        check_image_folders([tmp_path / "a", tmp_path / "b"])
+
+
+@pytest.mark.parametrize(
+    "case, message",
+    [
+        ("lengths", "got 3 frames"),
+        ("fps", "got 12.5 frames/s"),
+        ("unreadable", "junk.mp4"),
+        ("cameras", "3 cameras for"),
+        ("empty", "image files"),
+    ],
+)
+def test_run_bad_input_is_one_line_and_leaves_nothing(tmp_path, capsys, case, message):
+    save_rig(_rig(3 if case != "cameras" else 2), tmp_path / "calib.toml")
+    videos = [write_video(tmp_path / f"v{v}.mp4", _frames(5, v)) for v in range(3)]
+    source = ["--videos", *map(str, videos)]
+    if case == "lengths":
+        write_video(videos[2], _frames(3))
+    elif case == "fps":
+        write_video(videos[1], _frames(5), fps=12.5)
+    elif case == "unreadable":
+        videos[2] = tmp_path / "junk.mp4"
+        videos[2].write_bytes(b"\x00" * 1000)
+        source = ["--videos", *map(str, videos)]
+    elif case == "empty":
+        for v in range(3):
+            (tmp_path / f"im{v}").mkdir()
+        source = ["--images", *(str(tmp_path / f"im{v}") for v in range(3))]
+    out = tmp_path / "out"
+    code = main(["run", "--calib", str(tmp_path / "calib.toml"), *source, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("rmpl run: error:"), err
+    assert message in lines[0]
+    assert not out.exists() or not any(out.rglob("*"))
+
+
+def test_cache_is_not_reused_for_other_inputs(tmp_path, monkeypatch):
+    from rmpl.cli._common import _load_2d
+    from rmpl.synth import detect
+
+    det = CountingDetector()
+    monkeypatch.setitem(detect.DETECTORS, "counting", lambda: det)
+    det.close = lambda: None
+    save_rig(_rig(2), tmp_path / "calib.toml")
+    videos = [str(write_video(tmp_path / f"v{v}.mp4", _frames(4, v))) for v in range(2)]
+    args = argparse.Namespace(
+        keypoints=None, videos=videos, images=None, calib=str(tmp_path / "calib.toml"),
+        detector="counting", fps=None,
+    )  # fmt: skip
+    cache = tmp_path / "out" / "keypoints2d.npz"
+    first = _load_2d(args, cache)
+    assert det.images == 8 and cache.is_file()
+    assert not (tmp_path / "out" / ".detect2d").exists()  # the resume files are cleared
+    _load_2d(args, cache)
+    assert det.images == 8  # same inputs: cached
+    write_video(tmp_path / "v1.mp4", _frames(4, 9))
+    second = _load_2d(args, cache)
+    assert det.images == 16  # one video changed: everything is detected again
+    assert not np.allclose(first.keypoints[:, 1], second.keypoints[:, 1])
+
+
+class OracleDetector:
+    """A stand-in Detector that reads (view, frame) from an image's uniform grey level and
+    returns the true projections: the whole ``rmpl run --videos`` path without mediapipe."""
+
+    name = "oracle"
+    skeleton = COCO17
+
+    def __init__(self, pixels: np.ndarray) -> None:
+        self.pixels = pixels  # (T, V, J, 2)
+
+    def __call__(self, images):
+        code = np.array([int(round(im.mean() / 20)) - 1 for im in images])
+        t, v = code // self.pixels.shape[1], code % self.pixels.shape[1]
+        return self.pixels[t, v].copy(), np.full((len(images), 17), 0.9)
+
+    def close(self) -> None:
+        pass
+
+
+def test_run_videos_end_to_end_with_a_stand_in_detector(tmp_path, monkeypatch):
+    from rmpl.io.poses import load_poses
+    from rmpl.synth import detect
+
+    T, V = 3, 3
+    rig = _rig(V)
+    X = np.random.default_rng(0).uniform(-0.3, 0.3, (T, 17, 3)) + [0, 0, 1]
+    monkeypatch.setitem(detect.DETECTORS, "oracle", lambda: OracleDetector(rig.project(X)))
+    save_rig(rig, tmp_path / "calib.toml")
+    # Videos named after the cameras but given in another order: matched by name.
+    for v in range(V):
+        grey = [np.full((64, 96, 3), 20 * (t * V + v + 1), np.uint8) for t in range(T)]
+        write_video(tmp_path / f"cam{v}.mp4", grey, fps=20)
+    videos = [str(tmp_path / f"cam{v}.mp4") for v in (2, 0, 1)]
+    out = tmp_path / "out"
+    args = ["run", "--calib", str(tmp_path / "calib.toml"), "--videos", *videos, "--out"]
+    args += [str(out), "--detector", "oracle", "--method", "triangulate", "--filter", "none"]
+    args += ["--formats", "npz,json", "--no-pictures"]
+    assert main(args) == 0
+    poses = load_poses(out / "poses.npz")
+    assert poses.fps == pytest.approx(20)
+    np.testing.assert_allclose(poses.points[:, 0], X, atol=1e-6)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [
+        "keypoints2d.inputs.json",
+        "keypoints2d.npz",
+        "overlay_cam0.mp4",
+        "overlay_cam1.mp4",
+        "overlay_cam2.mp4",
+        "poses.json",
+        "poses.npz",
+    ]
+
+
+# --------------------------------------------------------------------------- real detector
+
+
+def _anny_cache() -> Path:
+    pytest.importorskip("mediapipe")
+    pytest.importorskip("moderngl")
+    pytest.importorskip("anny")
+    path = os.environ.get("ANNY_CACHE_DIR")
+    if not path or not Path(path).is_dir() or not any(Path(path).iterdir()):
+        pytest.skip("set ANNY_CACHE_DIR to a built anny cache (the first build takes minutes)")
+    return Path(path)
+
+
+def render_walk(folder: Path, num_frames: int = 5, views: int = 3, fps: float = 10.0):
+    """Videos of an anny body stepping forward, seen by ``views`` cameras around it.
+
+    Writes ``cam<v>.mp4`` and ``calib.toml`` into ``folder``; returns the rig and the
+    ground-truth COCO-17 keypoints regressed from the mesh, shape (T, 17, 3), metres.
+    """
+    from rmpl.synth.body import BodyModel, place_bodies
+    from rmpl.synth.render import Renderer, random_lighting, random_outfits
+
+    model = BodyModel(cache_dir=_anny_cache())
+    pose = model.identity_pose(num_frames)
+    # Arms down from the A-pose a little more, and the legs swinging: a stride per second.
+    phase = 2 * np.pi * np.arange(num_frames) / fps
+    for side, sign in ((".L", 1.0), (".R", -1.0)):
+        swing = np.deg2rad(20) * sign * np.sin(phase)
+        c, s = np.cos(swing), np.sin(swing)
+        hip = model.bone_index("upperleg01" + side)
+        pose[:, hip, 1, 1], pose[:, hip, 1, 2] = c, -s
+        pose[:, hip, 2, 1], pose[:, hip, 2, 2] = s, c
+    bodies = model(pose, np.full((num_frames, 6), 0.5))
+    yaw = np.full(num_frames, 0.3)
+    position = np.stack([np.linspace(0, 0.4, num_frames), np.zeros(num_frames)], -1)
+    vertices, keypoints = place_bodies(bodies.vertices, bodies.keypoints, yaw, position)
+    width, height = 480, 360
+    K = np.array([[420.0, 0, (width - 1) / 2], [0, 420, (height - 1) / 2], [0, 0, 1]])
+    centre = np.array([0.2, 0.0, 0.9])
+    cams = []
+    for v in range(views):
+        a = -np.pi / 2 + (v - (views - 1) / 2) * np.deg2rad(60)  # in front of the body (-y)
+        eye = centre + [3.6 * np.cos(a), 3.6 * np.sin(a), 0.4]
+        R, t = look_at(eye, centre)
+        cams.append(Camera(K, R, t, size=(width, height), name=f"cam{v}"))
+    rig = Rig(tuple(cams))
+    save_rig(rig, folder / "calib.toml")
+    colors = np.repeat(random_outfits(model.vertex_parts, 1, rng=3), num_frames, axis=0)
+    light = random_lighting(3)
+    B = num_frames
+    with Renderer(model.faces, model.num_vertices) as renderer:
+        images = renderer.render(
+            vertices,
+            colors,
+            np.broadcast_to(rig.K, (B, views, 3, 3)),
+            np.broadcast_to(rig.R, (B, views, 3, 3)),
+            np.broadcast_to(rig.t, (B, views, 3)),
+            np.broadcast_to(rig.sizes, (B, views, 2)),
+            lighting=[light] * B,
+            rng=0,
+        )
+    for v in range(views):
+        write_video(folder / f"cam{v}.mp4", [images[b * views + v] for b in range(B)], fps)
+    return rig, keypoints
+
+
+#: Bound on the mean 3D joint error against the mesh's regressed keypoints, metres.
+#: MediaPipe's joints are not the regressor's (hips especially sit elsewhere), so this
+#: bounds detector bias plus lifting error, not the lifter alone.
+MAX_MPJPE = 0.12
+
+
+@pytest.mark.parametrize("method", ["rmpl", "triangulate"])
+def test_run_on_rendered_videos_with_mediapipe(tmp_path, method):
+    from rmpl.io.poses import load_poses
+
+    rig, gt = render_walk(tmp_path)
+    out = tmp_path / "out"
+    args = ["run", "--calib", str(tmp_path / "calib.toml"), "--out", str(out)]
+    args += ["--videos", *(str(tmp_path / f"cam{v}.mp4") for v in range(len(rig)))]
+    args += ["--method", method, "--filter", "none", "--formats", "npz", "--no-pictures"]
+    assert main(args) == 0
+    assert (out / "keypoints2d.npz").is_file() and (out / "keypoints2d.inputs.json").is_file()
+    poses = load_poses(out / "poses.npz")
+    assert poses.points.shape == (len(gt), 1, 17, 3)
+    err = np.linalg.norm(poses.points[:, 0] - gt, axis=-1)  # (T, J)
+    assert np.isfinite(err).mean() > 0.9
+    assert np.nanmean(err) < MAX_MPJPE, np.nanmean(err, axis=0).round(3)
