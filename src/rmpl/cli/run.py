@@ -1,13 +1,25 @@
 """The whole job: 2D detections (or videos) + calibration -> tracked, smoothed 3D skeletons.
 
-Stages: detection (videos/images only; cached in OUT/keypoints2d.npz), association across
-views, lifting (or triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D) and
-pictures (viewer.html, skeleton.png, reprojection.png).
+Stages: detection (videos/images only), association across views, lifting (or
+triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D, BVH) and pictures
+(viewer.html, skeleton.png, reprojection.png, and for videos/images the reprojection
+overlays overlay_<camera>.mp4 or overlay_<camera>/).
+
+From videos (--videos, one synchronised video per camera) or image folders (--images, one
+folder of frames per camera, image i of each folder = frame i): MediaPipe BlazePose
+(needs rmpl[detect]) finds one person per frame and view. The videos must have the same
+number of frames and frame rate; the cameras of --calib are matched to the videos by name
+(file name without suffix = camera name) or else by order. The 2D detections are cached in
+OUT/keypoints2d.npz with a fingerprint of the inputs (names, sizes, modification times) in
+OUT/keypoints2d.inputs.json: a second run on the same inputs skips detection, a run on
+other inputs detects again. An interrupted detection resumes from the views already done
+(OUT/.detect2d/).
 
 Examples:
   rmpl run --calib Calib.qca.txt --keypoints pose/ --out results/
   rmpl run --calib calibration.json --keypoints shelf_dev/ --out shelf/ --method robust
   rmpl run --calib calib.toml --videos cam1.mp4 cam2.mp4 cam3.mp4 --out trial/
+  rmpl run --calib calib.toml --images frames/cam1 frames/cam2 --fps 30 --out trial/
 """
 
 from __future__ import annotations
@@ -55,6 +67,14 @@ def register(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--formats", default="npz,json,trc,c3d", help=f"any of {','.join(FORMATS)}")
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
+    parser.add_argument(
+        "--no-overlay",
+        action="store_true",
+        help="videos/images: skip drawing the result onto the input frames",
+    )
+    parser.add_argument(
+        "--detector", default="mediapipe", help="videos/images: 2D detector (mediapipe)"
+    )
     parser.set_defaults(run=run)
 
 
@@ -88,7 +108,31 @@ def run(args: argparse.Namespace) -> int:
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
     )
     write_all(poses, inputs, out, formats, pictures=not args.no_pictures)
+    if (args.videos or args.images) and not args.no_overlay:
+        write_input_overlays(args, poses, inputs, out)
     return 0
+
+
+def write_input_overlays(args: argparse.Namespace, poses, inputs, out: Path) -> list[Path]:
+    """The result drawn onto the input videos/images, one overlay per camera."""
+    from rmpl.detect2d import view_names
+    from rmpl.overlay import write_overlays
+
+    kind = "videos" if args.videos else "images"
+    sources = args.videos or args.images
+    names = view_names(sources)
+    if set(names) == set(inputs.rig.names):  # the same matching as load_calibration_and_2d
+        sources = [sources[names.index(n)] for n in inputs.rig.names]
+    return write_overlays(
+        sources,
+        poses,
+        inputs.rig,
+        out,
+        keypoints=inputs.keypoints,
+        scores=inputs.scores,
+        frames=inputs.frames,
+        kind=kind,
+    )
 
 
 def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True) -> None:
