@@ -385,17 +385,15 @@ def _voxelpose(root: Path, name: str, frames: str) -> tuple[MultiViewDataset, np
     from rmpl.data.campus import EVAL_FRAMES, load_actors_gt, load_campus_layout
 
     _, gt2d = load_actors_gt(root / "actorsGT.mat")
-    T_all = len(gt2d) if gt2d is not None else None
-    keep, note = None, "frames: all of actorsGT.mat"
+    data = load_campus_layout(root, name)
+    note = f"frames: all {len(data)} of actorsGT.mat"
     if frames == "eval":
-        data0 = load_campus_layout(root, name, frames=None)
-        T_all = len(data0)
-        ev = [f for f in EVAL_FRAMES[name] if f < T_all]
-        if len(ev) == len(EVAL_FRAMES[name]):
-            keep, note = ev, f"frames: the customary {name} evaluation frames"
+        wanted = np.asarray(EVAL_FRAMES[name])
+        if wanted.max() < len(data):
+            data = _take_frames(data, np.isin(data.frames, wanted))
+            note = f"frames: the customary {name} evaluation frames"
         else:
-            note = f"frames: all {T_all} of actorsGT.mat (shorter than the customary range)"
-    data = load_campus_layout(root, name, frames=keep)
+            note += " (fewer than the customary evaluation range)"
     data = dataclasses.replace(data, person_ids=np.arange(1, data.num_people + 1))
     ann = None
     if gt2d is not None:

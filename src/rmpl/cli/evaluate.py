@@ -157,8 +157,9 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         pck_threshold=args.pck / 1000.0,
     )
+    methods = _methods(args.methods)
     if args.dataset == "synthetic":
-        return _run_synthetic(args, config)
+        return _run_synthetic(args, config, methods)
     if args.cameras == "sphere" or args.cameras == "random":
         raise InputError(None, "--cameras", f"camera names for {args.dataset}", args.cameras)
     from rmpl.evaluate import evaluate, load_eval_set, view_subsets
@@ -175,7 +176,6 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
     )
     view_sets = view_subsets(evset.num_views, args.views or "all,pairs")
-    methods = _methods(args.methods)
     ev = evaluate(evset, methods, view_sets, config)
     files = _real_outputs(ev, args)
     print(files["results.md"])
@@ -376,7 +376,7 @@ def _real_plots(out: Path, ev) -> None:
 # --------------------------------------------------------------------------- synthetic
 
 
-def _run_synthetic(args, config) -> int:
+def _run_synthetic(args, config, methods) -> int:
     from rmpl.cli.train import load_poses
 
     mode = args.cameras or "random"
@@ -390,7 +390,6 @@ def _run_synthetic(args, config) -> int:
     _, held = bank.split(args.holdout.split(","))
     if not len(held):
         raise ValueError(f"{args.root}: no poses of held-out subjects {args.holdout}")
-    methods = _methods(args.methods)
     head = [
         f"# rmpl evaluate: synthetic ({mode} cameras)",
         "",
