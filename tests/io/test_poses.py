@@ -278,7 +278,7 @@ def test_trc_and_c3d_need_fps_and_leave_no_file(tmp_path):
 def test_unknown_format_and_options(tmp_path):
     poses = _poses(T=2, P=1)
     with pytest.raises(InputError, match="format"):
-        save_poses(poses, tmp_path / "p.bvh")
+        save_poses(poses, tmp_path / "p.fbx")
     with pytest.raises(InputError, match="units"):
         save_poses(poses, tmp_path / "p.trc", units="inch")
     with pytest.raises(InputError, match="up_axis"):

@@ -32,7 +32,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("npz", "json", "trc", "c3d")
+FORMATS = ("npz", "json", "trc", "c3d", "bvh")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -65,7 +65,11 @@ def register(parser: argparse.ArgumentParser) -> None:
         choices=["x", "y", "z", "-x", "-y", "-z"],
         help="world up axis (default: from the cameras)",
     )
-    parser.add_argument("--formats", default="npz,json,trc,c3d", help=f"any of {','.join(FORMATS)}")
+    parser.add_argument(
+        "--formats",
+        default="npz,json,trc,c3d",
+        help=f"any of {','.join(FORMATS)} (BVH: one file per person, poses_p<id>.bvh)",
+    )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(
         "--no-overlay",
@@ -135,14 +139,41 @@ def write_input_overlays(args: argparse.Namespace, poses, inputs, out: Path) -> 
     )
 
 
+def _write_bvh(poses, out: Path) -> None:
+    """BVH holds one skeleton: poses.bvh for one person, else poses_p<id>.bvh each."""
+    import dataclasses
+
+    from rmpl.errors import InputError
+    from rmpl.io.poses import save_poses
+
+    for p, pid in enumerate(poses.person_ids.tolist()):
+        one = dataclasses.replace(
+            poses,
+            points=poses.points[:, p : p + 1],
+            person_ids=poses.person_ids[p : p + 1],
+            **{
+                k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
+                for k in ("scores", "flags", "num_views")
+            },
+        )
+        name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"
+        try:
+            save_poses(one, out / name)
+        except InputError as e:  # a person too briefly seen for a skeleton
+            log.warning("skipping %s: %s", name, e)
+
+
 def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True) -> None:
     """Every requested export plus the viewer page and the two pictures."""
     from rmpl.io.poses import save_poses
 
     out.mkdir(parents=True, exist_ok=True)
     for fmt in formats:
-        if fmt in ("trc", "c3d") and not poses.fps:
+        if fmt in ("trc", "c3d", "bvh") and not poses.fps:
             log.warning("skipping %s: no frame rate (give --fps)", fmt.upper())
+            continue
+        if fmt == "bvh":
+            _write_bvh(poses, out)
             continue
         save_poses(poses, out / f"poses.{fmt}")
     ok = np.isfinite(poses.points).all(-1)

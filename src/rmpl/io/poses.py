@@ -1,4 +1,4 @@
-"""3D poses out (NPZ, JSON, OpenSim TRC, C3D) and back in (NPZ, JSON, TRC).
+"""3D poses out (NPZ, JSON, OpenSim TRC, C3D, BVH) and back in (NPZ, JSON, TRC).
 
 A :class:`Poses3D` holds world points in metres, shape (T, P, J, 3), NaN where a joint is
 missing, with optional per-joint scores, source flags (:class:`JointSource`) and view counts.
@@ -26,9 +26,14 @@ File formats, chosen from the extension by :func:`save_poses`:
     ``frames[0] + 1`` to ``frames[-1] + 1``, frames in between that are not in the poses are
     written missing.
 
+``.bvh``
+    One person (COCO-17) as a skeleton with constant bone lengths and per-frame joint
+    rotations, fitted by :mod:`rmpl.io.bvh`; ``m`` (default) or ``mm``; contiguous frames
+    from ``frames[0]`` to ``frames[-1]`` (missing ones interpolated).
+
 ``up_axis``: rmpl writes world coordinates as they are (``None``, the default). OpenSim
 expects +Y up; when the world is Z-up (Shelf, Pose2Sim's Qualisys calibrations)
-``up_axis="y"`` rotates it by -90 degrees about X for TRC and C3D: ``(x, y, z) -> (x, z,
+``up_axis="y"`` rotates it by -90 degrees about X for TRC, C3D and BVH: ``(x, y, z) -> (x, z,
 -y)``. Pass the same ``up_axis`` to :func:`load_poses` to rotate a TRC back.
 """
 
@@ -65,7 +70,7 @@ from rmpl.skeleton import SKELETONS
 
 __all__ = ["JointSource", "POSE_FORMATS", "Poses3D", "load_poses", "save_poses"]
 
-POSE_FORMATS = ("npz", "json", "trc", "c3d")
+POSE_FORMATS = ("npz", "json", "trc", "c3d", "bvh")
 _TAG = "rmpl.poses3d"
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}  # metres per unit
 _TRC_KEYS = (
@@ -202,8 +207,9 @@ def save_poses(
     Args:
         poses: what to write.
         path: output file.
-        format: ``"npz"``, ``"json"``, ``"trc"`` or ``"c3d"``; from the extension when None.
-        units: ``"m"`` or ``"mm"`` for TRC and C3D (NPZ and JSON are always metres).
+        format: ``"npz"``, ``"json"``, ``"trc"``, ``"c3d"`` or ``"bvh"``; from the extension
+            when None.
+        units: ``"m"`` or ``"mm"`` for TRC, C3D and BVH (NPZ and JSON are always metres).
         up_axis: None writes world axes unchanged; ``"y"`` turns a Z-up world Y-up for
             OpenSim (TRC and C3D only), see the module docstring.
 
@@ -220,8 +226,10 @@ def save_poses(
         poses = dataclasses.replace(poses)  # validate again: fields may have changed since
     except InputError as e:
         raise _with_path(e, path) from None
-    if fmt in ("trc", "c3d"):
+    if fmt in ("trc", "c3d", "bvh"):
         _check_trajectories(poses, path)
+    if fmt == "bvh":
+        _check_bvh(poses, path)
     if fmt == "c3d" and poses.frames[0] < 0:
         raise InputError(path, "frames", "frame numbers >= 0 for C3D", int(poses.frames[0]))
     with atomic_path(path) as tmp:
@@ -232,6 +240,8 @@ def save_poses(
                 json.dump(_json_doc(poses), f, allow_nan=False)
         elif fmt == "trc":
             tmp.write_text(_trc_text(poses, path.name, units, up_axis), encoding="utf-8")
+        elif fmt == "bvh":
+            tmp.write_text(_bvh_text(poses, units, up_axis), encoding="utf-8")
         else:
             _write_c3d(poses, tmp, units, up_axis)
     return path
@@ -257,8 +267,8 @@ def load_poses(
     """
     path = Path(path)
     fmt = _format_of(path, format)
-    if fmt == "c3d":
-        raise InputError(path, None, "an .npz, .json or .trc file (C3D is write-only)", "c3d")
+    if fmt in ("c3d", "bvh"):
+        raise InputError(path, None, f"an .npz, .json or .trc file ({fmt} is write-only)", fmt)
     if up_axis not in (None, "z", "y") or (up_axis == "y" and fmt != "trc"):
         raise InputError(path, "up_axis", "None, 'z' or 'y' (TRC only)", up_axis)
     if not path.is_file():
@@ -510,3 +520,26 @@ def _write_c3d(poses: Poses3D, tmp: Path, units: str, up_axis: str | None) -> No
         warnings.filterwarnings("ignore", "No analog data", UserWarning)
         with open(tmp, "wb") as f:
             writer.write(f)
+
+
+# --------------------------------------------------------------------------- BVH
+
+
+def _check_bvh(poses: Poses3D, path: Path) -> None:
+    if poses.skeleton != "coco17":
+        raise InputError(path, "skeleton", "coco17 for BVH", poses.skeleton)
+    if poses.num_people != 1:
+        raise InputError(path, "points", "one person per BVH file", f"{poses.num_people}")
+    seen = ~np.isnan(poses.points[:, 0, [5, 6, 11, 12]]).any(-1)
+    if not seen.all(-1).any():
+        raise InputError(path, "points", "both hips and both shoulders in some frame", "none")
+
+
+def _bvh_text(poses: Poses3D, units: str, up_axis: str | None) -> str:
+    from rmpl.io.bvh import bvh_text
+
+    first = int(poses.frames[0])
+    points = np.full((int(poses.frames[-1]) - first + 1, 17, 3), np.nan)
+    points[poses.frames - first] = poses.points[:, 0]
+    axes = _Z_UP_TO_Y_UP if up_axis == "y" else None
+    return bvh_text(points, poses.fps, scale=1.0 / _UNITS[units], axes=axes)
