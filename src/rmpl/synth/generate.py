@@ -590,6 +590,7 @@ def generate(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    cache_dir = cache_dir or os.environ.get("ANNY_CACHE_DIR")
     _check_same_config(out, cfg)
     bank = _prepare_bank(cfg, out)
     bank_info = {}
@@ -629,7 +630,7 @@ def generate(
         import ray
 
         if ray_address == "local":
-            ray.init(num_cpus=max(workers, 1), ignore_reinit_error=True)
+            ray.init(num_cpus=max(workers, 1), include_dashboard=False, ignore_reinit_error=True)
         else:
             ray.init(address=ray_address, ignore_reinit_error=True)
         task = ray.remote(num_cpus=1)(_ray_shard)
