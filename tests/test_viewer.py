@@ -199,6 +199,8 @@ def _dump_dom(url: str) -> str:
                 "--disable-gpu",
                 "--disable-background-networking",
                 "--disable-component-update",
+                "--disable-quic",
+                "--disable-sync",
                 "--no-first-run",
                 "--enable-unsafe-swiftshader",
                 "--host-resolver-rules=MAP * ~NOTFOUND",
