@@ -86,6 +86,7 @@ class DetectorStats:
     joint_table: list[dict]
     calibration: list[dict]
     overall: dict
+    by_height: list[dict] = field(default_factory=list)
     noise: dict = field(default_factory=dict)
 
     def markdown(self) -> str:
@@ -119,6 +120,15 @@ class DetectorStats:
                 f"| {r['bin']} | {r['count']} | {r['median_px']:.1f} | {r['mean_px']:.1f} | "
                 f"{r['median_rel']:.3f} |"
             )
+        lines += [
+            "",
+            "Views with no detection by person height (extent of the projected joints):",
+            "",
+            "| height px | views | no detection % |",
+            "| --- | --- | --- |",
+        ]
+        for r in self.by_height:
+            lines.append(f"| {r['bin']} | {r['views']} | {r['miss_pct']:.1f} |")
         lines += ["", "Fitted NoiseConfig:", "", "| parameter | value |", "| --- | --- |"]
         for k, v in self.noise.items():
             text = ", ".join(f"{x:.4f}" for x in v) if isinstance(v, list) else f"{v:.4f}"
@@ -271,8 +281,22 @@ def detector_stats(root: str | Path) -> DetectorStats:
                 "median_rel": float(np.median(rel[sel])),
             }
         )
+    by_height = []
+    h_edges = [0, 100, 200, 300, 400, 600, np.inf]
+    for a, b in zip(h_edges[:-1], h_edges[1:], strict=True):
+        sel = (height >= a) & (height < b) & inside.all(-1)
+        if sel.any():
+            label = f"{a}-{b}" if np.isfinite(b) else f">= {a}"
+            by_height.append(
+                {
+                    "bin": label,
+                    "views": int(sel.sum()),
+                    "miss_pct": float(100 * (~seen[sel]).mean()),
+                }
+            )
     return DetectorStats(
         root=str(root),
+        by_height=by_height,
         meshes=M,
         views=M * V,
         height_px=float(np.median(height)),
