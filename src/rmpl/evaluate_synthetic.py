@@ -54,6 +54,17 @@ def _row(pred: np.ndarray, target: np.ndarray, pck: float) -> dict[str, float]:
     return {k: m[k] for k in ("mpjpe", "kpstar", "coverage", "pa_mpjpe", "pck")}
 
 
+def _common(preds: dict[str, np.ndarray]) -> np.ndarray:
+    """Joints every method estimated, shape (B, J)."""
+    return np.logical_and.reduce([np.isfinite(x).all(-1) for x in preds.values()])
+
+
+def _masked_mpjpe(pred: np.ndarray, target: np.ndarray, mask: np.ndarray) -> float:
+    """MPJPE (mm) over ``mask`` (B, J); NaN when it is empty."""
+    e = np.linalg.norm(pred - target, axis=-1)[mask]
+    return 1000 * float(e.mean()) if e.size else float("nan")
+
+
 def evaluate_synthetic(
     poses: np.ndarray,
     methods: dict,
@@ -85,7 +96,8 @@ def evaluate_synthetic(
             (pred, target), each (B, 17, 3) metres, for per-joint breakdowns.
 
     Returns:
-        Rows: views, method, mpjpe, kpstar, coverage, pa_mpjpe, pck, dropout, calib_noise.
+        Rows: views, method, mpjpe, kpstar, coverage, pa_mpjpe, pck, mpjpe_common (on the
+        joints every method estimated), dropout, calib_noise.
     """
     from tqdm import tqdm
 
@@ -108,12 +120,16 @@ def evaluate_synthetic(
             for name, method in methods.items():
                 pred = _per_scene(method, kp, sc, batch.K, R, t)
                 results[name].append((pred, target))
-        for name, pairs in results.items():
-            pred = np.concatenate([a for a, _ in pairs])
-            target = np.concatenate([b for _, b in pairs])
+        merged = {
+            name: (np.concatenate([a for a, _ in pairs]), np.concatenate([b for _, b in pairs]))
+            for name, pairs in results.items()
+        }
+        common = _common({n: a for n, (a, _) in merged.items()})
+        for name, (pred, target) in merged.items():
             if predictions is not None:
                 predictions[v, p, calib, name] = (pred, target)
             row = {"views": v, "method": name, **_row(pred, target, pck_threshold)}
+            row["mpjpe_common"] = _masked_mpjpe(pred, target, common)
             row["dropout"] = p
             row["calib_noise"] = (
                 "none" if calib is None else (f"{calib[0]:g} deg, {1000 * calib[1]:g} mm")
@@ -143,7 +159,8 @@ def evaluate_sphere(
     scenes and noise draws are used for every height and angle.
 
     Returns:
-        Rows: height, angle, method, mpjpe, kpstar, coverage, pa_mpjpe, pck (mm, %).
+        Rows: height, angle, method, mpjpe, kpstar, coverage, pa_mpjpe, pck, mpjpe_common
+        (mm, %; the last on the joints every method estimated).
     """
     from tqdm import tqdm
 
@@ -169,8 +186,11 @@ def evaluate_sphere(
             np.broadcast_to(wh, (B, 2, 2)),
             np.random.default_rng([seed, 61]),  # the same noise draws at every point
         )
-        for name, method in methods.items():
-            pred = method(kp, sc, rig)
+        preds = {name: method(kp, sc, rig) for name, method in methods.items()}
+        common = _common(preds)
+        for name, pred in preds.items():
             row = {"height": float(h), "angle": float(a), "method": name}
-            rows.append(row | _row(pred, joints, pck_threshold))
+            row |= _row(pred, joints, pck_threshold)
+            row["mpjpe_common"] = _masked_mpjpe(pred, joints, common)
+            rows.append(row)
     return rows

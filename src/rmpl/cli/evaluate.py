@@ -430,7 +430,7 @@ def _run_synthetic(args, config, methods) -> int:
             f"{1000 * config.calib_noise[1]:g} mm on the methods' extrinsics, "
             f"{config.calib_reps} draws"
         )
-    cols = ["views", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"]
+    cols = ["views", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage", "mpjpe_common"]
     if len(config.dropout) > 1:
         cols.append("dropout")
     if config.calib_noise:
@@ -573,7 +573,17 @@ def _run_sphere(args, config, poses, methods, head) -> int:
     text = "\n".join(head) + "\n\n"
     text += markdown_table(
         rows,
-        ["height", "angle", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"],
+        [
+            "height",
+            "angle",
+            "method",
+            "mpjpe",
+            "kpstar",
+            "pa_mpjpe",
+            "pck",
+            "coverage",
+            "mpjpe_common",
+        ],
         args.pck,
     )
     # Compact view: MPJPE, one column per method and height.
@@ -590,6 +600,17 @@ def _run_sphere(args, config, poses, methods, head) -> int:
             cells.append(f"{r['mpjpe']:.1f}" if np.isfinite(r["mpjpe"]) else "—")
         lines.append(f"| {a:g} | " + " | ".join(cells) + " |")
     text += "\nMPJPE (mm) by angle:\n\n" + "\n".join(lines) + "\n"
+    lines = lines[:2]
+    for a in angles:
+        cells = []
+        for h, m in cols:
+            r = next(x for x in rows if x["height"] == h and x["angle"] == a and x["method"] == m)
+            cells.append(f"{r['mpjpe_common']:.1f}" if np.isfinite(r["mpjpe_common"]) else "—")
+        lines.append(f"| {a:g} | " + " | ".join(cells) + " |")
+    text += (
+        "\nMPJPE (mm) by angle on the joints every method estimated (triangulation needs a "
+        "joint in both views):\n\n" + "\n".join(lines) + "\n"
+    )
     print(text)
     if args.out:
         from rmpl.evaluate_plots import sweep_plot
@@ -620,5 +641,27 @@ def _run_sphere(args, config, poses, methods, head) -> int:
                 out / "sphere.png",
                 "horizontal angle between the cameras (deg)",
                 title=f"two cameras on a {args.radius:g} m sphere: MPJPE vs angle",
+            )
+            common = {
+                key: (
+                    angles,
+                    [
+                        next(
+                            x["mpjpe_common"]
+                            for x in rows
+                            if x["height"] == float(key.split(" | ")[1][:-2])
+                            and x["angle"] == a
+                            and x["method"] == key.split(" | ")[0]
+                        )
+                        for a in angles
+                    ],
+                )
+                for key in curves
+            }
+            sweep_plot(
+                common,
+                out / "sphere_common_joints.png",
+                "horizontal angle between the cameras (deg)",
+                title="MPJPE vs angle on the joints every method estimated",
             )
     return 0
