@@ -541,3 +541,94 @@ def test_annotations_requested_where_there_are_none(shared_data, capsys):
         pytest.skip(f"{root} not found")
     with pytest.raises(InputError, match="annotations"):
         load_eval_set("panoptic", root, two_d="annotations")
+
+
+# --- finished results (--poses) -------------------------------------------------------
+
+
+@pytest.mark.shared
+def test_score_finished_results(fixtures, tmp_path, capsys):
+    """Results written by another run are matched by frame number and person; a shifted
+    person scores exactly its shift, a ghost person is ignored, a missing one is missing."""
+    from rmpl.evaluate import _gt_coco, evaluate_poses
+    from rmpl.io.poses import Poses3D, save_poses
+
+    root = fixtures / "shelf"
+    evset = load_eval_set("shelf", root, two_d="annotations")
+    part = evset.parts[0]
+    gt = _gt_coco(part)  # (T, P, 17, 3)
+    present = np.isfinite(gt).all(-1).any(-1)
+    t0, p0 = np.argwhere(present)[0]
+    shifted = gt.copy()
+    shifted[t0, p0] += [0.1, 0.0, 0.0]
+    ghost = np.full((len(gt), 1, 17, 3), np.nan)
+    ghost[:, 0] = gt[t0, p0] + [20.0, 0.0, 0.0]  # far outside the 0.5 m gate
+    people = np.concatenate([shifted[:, ::-1], ghost], axis=1)  # order must not matter
+    res = Poses3D(points=people, frames=part.frames, fps=25.0)
+    ev = evaluate_poses(evset, {"exact": Poses3D(points=gt, frames=part.frames), "moved": res})
+    rows = {r["method"]: r for r in results_rows(ev)}
+    n = int(np.isfinite(gt[present][..., ev.joints, :]).all(-1).sum())
+    moved_joints = int(np.isfinite(gt[t0, p0, ev.joints]).all(-1).sum())
+    # (PCP is not 100: the head part uses a neck and head top derived from COCO-17)
+    assert rows["exact"]["mpjpe"] < 1e-6 and rows["exact"]["pcp_mean"] >= rows["moved"]["pcp_mean"]
+    assert np.isclose(rows["moved"]["mpjpe"], 100 * moved_joints / n)
+    assert np.isclose(rows["exact"]["coverage"], 100)
+
+    # One frame missing from the result: its people count as not estimated.
+    short = Poses3D(points=gt[1:], frames=part.frames[1:])
+    cov = {r["method"]: r["coverage"] for r in results_rows(evaluate_poses(evset, {"s": short}))}
+    assert cov["s"] < 100
+
+    # Through the command line, from a file.
+    save_poses(res, tmp_path / "run" / "poses.npz")
+    out = tmp_path / "eval"
+    assert (
+        _run(
+            "--dataset",
+            "shelf",
+            "--root",
+            root,
+            "--2d",
+            "annotations",
+            "--poses",
+            tmp_path / "run" / "poses.npz",
+            "--out",
+            out,
+        )
+        == 0
+    )
+    assert [r["method"] for r in _rows(out / "results.csv")] == ["run"]
+    assert "finished 3D results" in (out / "results.md").read_text()
+
+    # Frames that do not overlap, and options that cannot apply, are one-line errors.
+    save_poses(Poses3D(points=gt, frames=part.frames + 10_000), tmp_path / "far.npz")
+    capsys.readouterr()
+    assert (
+        _run(
+            "--dataset",
+            "shelf",
+            "--root",
+            root,
+            "--2d",
+            "annotations",
+            "--poses",
+            tmp_path / "far.npz",
+        )
+        == 2
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "frames" in err[0], err
+    assert (
+        _run(
+            "--dataset",
+            "shelf",
+            "--root",
+            root,
+            "--poses",
+            tmp_path / "far.npz",
+            "--views",
+            "pairs",
+        )
+        == 2
+    )
+    assert "--views" in capsys.readouterr().err

@@ -46,6 +46,7 @@ import numpy as np
 from rmpl.data.base import MultiViewDataset, coco17_by_name
 from rmpl.errors import InputError
 from rmpl.geometry import Rig, triangulate, triangulate_robust
+from rmpl.io.poses import Poses3D
 from rmpl.metrics import pcp_parts, procrustes_align
 from rmpl.skeleton import COCO17, KP_STAR, SHELF14, convert
 
@@ -680,6 +681,45 @@ def _assign(pred, frame, slot, gt_frames, joints, gate) -> np.ndarray:
     return out
 
 
+def _scored(evset: EvalSet, names: list[str], view_sets, cfg: EvalConfig):
+    """An empty :class:`Evaluation` with its scored ground-truth poses filled in.
+
+    Returns:
+        The evaluation, the per-part COCO-17 ground truth (T, P, 17, 3) and the per-part
+        (T, P) masks of the scored poses.
+    """
+    V = evset.num_views
+    for label, subsets in view_sets.items():
+        for s in subsets:
+            if not s or max(s) >= V:
+                raise ValueError(f"view subset {s} of {label!r} does not fit {V} cameras")
+    gts = [_gt_coco(p) for p in evset.parts]
+    defined = np.zeros(17, bool)
+    for g in gts:
+        defined |= np.isfinite(g).all(-1).any((0, 1))
+    joints = [int(j) for j in np.flatnonzero(defined)]
+    if not joints:
+        raise InputError(None, "gt", "ground truth with COCO-17 joints", "none defined")
+    ev = Evaluation(evset, cfg, list(names), joints, view_sets)
+    ev.reprojection = reprojection_check(evset)
+    # The scored poses: every (part, frame, person) with any ground-truth joint.
+    present = [np.isfinite(g[..., joints, :]).all(-1).any(-1) for g in gts]  # (T, P)
+    ev.gt = np.concatenate([g[m] for g, m in zip(gts, present, strict=True)])
+    ev.native = np.concatenate([p.gt[m] for p, m in zip(evset.parts, present, strict=True)])
+    persons, clips = [], []
+    for p, m in zip(evset.parts, present, strict=True):
+        ids = p.person_ids if p.person_ids is not None else np.arange(p.num_people)
+        tag = p.name.split("/", 1)[1] + " " if "/" in p.name else ""
+        lab = np.array([f"{tag}person {i}" for i in ids])
+        if evset.name in ("shelf", "campus"):
+            lab = np.array([f"actor {i}" for i in ids])
+        persons.append(np.broadcast_to(lab, m.shape)[m])
+        clip = p.clips if p.clips is not None else np.full(len(p), p.name)
+        clips.append(np.broadcast_to(clip[:, None], m.shape)[m])
+    ev.person, ev.clip = np.concatenate(persons), np.concatenate(clips)
+    return ev, gts, present
+
+
 def evaluate(
     evset: EvalSet,
     methods: dict[str, Method],
@@ -705,35 +745,8 @@ def evaluate(
 
     cfg = config or EvalConfig()
     conditions = cfg.conditions()
-    V = evset.num_views
-    for label, subsets in view_sets.items():
-        for s in subsets:
-            if not s or max(s) >= V:
-                raise ValueError(f"view subset {s} of {label!r} does not fit {V} cameras")
-    gts = [_gt_coco(p) for p in evset.parts]
-    defined = np.zeros(17, bool)
-    for g in gts:
-        defined |= np.isfinite(g).all(-1).any((0, 1))
-    joints = [int(j) for j in np.flatnonzero(defined)]
-    if not joints:
-        raise InputError(None, "gt", "ground truth with COCO-17 joints", "none defined")
-    ev = Evaluation(evset, cfg, list(methods), joints, view_sets)
-    ev.reprojection = reprojection_check(evset)
-    # The scored poses: every (part, frame, person) with any ground-truth joint.
-    present = [np.isfinite(g[..., joints, :]).all(-1).any(-1) for g in gts]  # (T, P)
-    ev.gt = np.concatenate([g[m] for g, m in zip(gts, present, strict=True)])
-    ev.native = np.concatenate([p.gt[m] for p, m in zip(evset.parts, present, strict=True)])
-    persons, clips = [], []
-    for p, m in zip(evset.parts, present, strict=True):
-        ids = p.person_ids if p.person_ids is not None else np.arange(p.num_people)
-        tag = p.name.split("/", 1)[1] + " " if "/" in p.name else ""
-        lab = np.array([f"{tag}person {i}" for i in ids])
-        if evset.name in ("shelf", "campus"):
-            lab = np.array([f"actor {i}" for i in ids])
-        persons.append(np.broadcast_to(lab, m.shape)[m])
-        clip = p.clips if p.clips is not None else np.full(len(p), p.name)
-        clips.append(np.broadcast_to(clip[:, None], m.shape)[m])
-    ev.person, ev.clip = np.concatenate(persons), np.concatenate(clips)
+    ev, gts, present = _scored(evset, list(methods), view_sets, cfg)
+    joints = ev.joints
 
     reps = cfg.calib_reps
     runs = sum(reps if c is not None else 1 for _, c in conditions)
@@ -770,6 +783,57 @@ def evaluate(
                     for name in methods:
                         ev.preds[label, ci, name].append(np.concatenate(per_method[name]))
     bar.close()
+    return ev
+
+
+def evaluate_poses(
+    evset: EvalSet, results: dict[str, Poses3D], config: EvalConfig | None = None
+) -> Evaluation:
+    """Score finished 3D results (``rmpl run`` output, any tool's TRC) against the ground truth.
+
+    Every person of a result frame is matched to the ground truth of the dataset frame with
+    the same number, by the same Hungarian assignment as :func:`evaluate`; unmatched ground
+    truth counts as missing. The view label is "all" and there are no perturbations.
+
+    Args:
+        evset: a single-clip dataset (its frame numbers are matched to the results').
+        results: name -> poses (COCO-17 or a joint set that converts to it).
+        config: thresholds (dropout and calibration noise must be off).
+
+    Returns:
+        :class:`Evaluation` with one method per result.
+
+    Raises:
+        InputError: a result with no frame in common with the dataset.
+    """
+    cfg = config or EvalConfig()
+    if cfg.dropout != (0.0,) or cfg.calib_noise is not None:
+        raise ValueError("finished results cannot be perturbed: no dropout or calibration noise")
+    if len(evset.parts) != 1:
+        raise ValueError(f"results are matched by frame number: one clip, got {len(evset.parts)}")
+    part = evset.parts[0]
+    view_sets = {"all": [tuple(range(evset.num_views))]}
+    ev, gts, present = _scored(evset, list(results), view_sets, cfg)
+    row = {int(f): t for t, f in enumerate(part.frames)}
+    for name, poses in results.items():
+        pts = poses.points
+        if poses.skeleton != "coco17":
+            pts = convert(pts, poses.skeleton, "coco17")
+        frames = poses.frames if poses.frames is not None else np.arange(len(pts))
+        pred, frame = [], []
+        for i, f in enumerate(np.asarray(frames).tolist()):
+            if int(f) not in row:
+                continue
+            people = pts[i][np.isfinite(pts[i]).all(-1).any(-1)]
+            pred.append(people)
+            frame.append(np.full(len(people), row[int(f)]))
+        if not pred:
+            span = f"{part.frames[0]}..{part.frames[-1]}"
+            got = f"{frames[0]}..{frames[-1]}" if len(frames) else "no frame"
+            raise InputError(name, "frames", f"frame numbers among the dataset's {span}", got)
+        pred, frame = np.concatenate(pred), np.concatenate(frame)
+        placed = _assign(pred, frame, np.full(len(frame), -1), gts[0], ev.joints, cfg.match_gate)
+        ev.preds["all", 0, name] = [placed[present[0]]]
     return ev
 
 

@@ -57,11 +57,19 @@ def check_output(path: str | Path) -> Path:
     return path
 
 
-def _is_shelf4d(paths: list[str]) -> bool:
-    return len(paths) == 1 and (Path(paths[0]) / "detection" / "0.txt").is_file()
+def _shelf4d_root(paths: list[str]) -> Path | None:
+    """The Shelf 4D folder given as ``--keypoints``: the folder itself or its detection/."""
+    if len(paths) != 1:
+        return None
+    p = Path(paths[0])
+    if (p / "detection" / "0.txt").is_file():
+        return p
+    if p.name == "detection" and (p / "0.txt").is_file():
+        return p.parent
+    return None
 
 
-def _shelf4d_keypoints(root: str):
+def _shelf4d_keypoints(root: Path):
     """Shelf/4D-association detections: group each view's candidates into people."""
     from tqdm import tqdm
 
@@ -94,8 +102,9 @@ def _load_2d(args: argparse.Namespace, cache: Path | None):
     from rmpl.io.keypoints import load_keypoints, save_keypoints
 
     if getattr(args, "keypoints", None):
-        if _is_shelf4d(args.keypoints):
-            return _shelf4d_keypoints(args.keypoints[0])
+        shelf = _shelf4d_root(args.keypoints)
+        if shelf is not None:
+            return _shelf4d_keypoints(shelf)
         return load_keypoints(args.keypoints, skeleton=args.skeleton)
     from rmpl.detect2d import (
         check_image_folders,

@@ -48,6 +48,14 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="'all', 'pairs' and/or view counts k (mean over every k-subset of the cameras), "
         "e.g. 1,2,3,4,5 (default: all,pairs; synthetic: 1,2,3,4,5)",
     )
+    parser.add_argument(
+        "--poses",
+        nargs="+",
+        default=None,
+        metavar="[NAME=]FILE",
+        help="score finished 3D results (rmpl run's poses.npz/.json, a TRC) instead of "
+        "running --methods; NAME defaults to the file's folder name",
+    )
     parser.add_argument("--out", default=None, help="folder for the tables and plots")
     parser.add_argument(
         "--keypoints",
@@ -159,10 +167,15 @@ def run(args: argparse.Namespace) -> int:
     )
     methods = _methods(args.methods)
     if args.dataset == "synthetic":
+        if args.poses:
+            raise InputError(None, "--poses", "a real dataset (finished results)", "synthetic")
         return _run_synthetic(args, config, methods)
     if args.cameras == "sphere" or args.cameras == "random":
         raise InputError(None, "--cameras", f"camera names for {args.dataset}", args.cameras)
-    from rmpl.evaluate import evaluate, load_eval_set, view_subsets
+    from rmpl.evaluate import evaluate, evaluate_poses, load_eval_set, view_subsets
+
+    if args.poses:
+        _check_poses_options(args)
 
     evset = load_eval_set(
         args.dataset,
@@ -175,8 +188,11 @@ def run(args: argparse.Namespace) -> int:
         frames=args.frames,
         seed=args.seed,
     )
-    view_sets = view_subsets(evset.num_views, args.views or "all,pairs")
-    ev = evaluate(evset, methods, view_sets, config)
+    if args.poses:
+        ev = evaluate_poses(evset, _results(args), config)
+    else:
+        view_sets = view_subsets(evset.num_views, args.views or "all,pairs")
+        ev = evaluate(evset, methods, view_sets, config)
     files = _real_outputs(ev, args)
     print(files["results.md"])
     if args.out:
@@ -185,6 +201,34 @@ def run(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------- real datasets
+
+
+def _check_poses_options(args) -> None:
+    """--poses scores fixed results: the options that change the 2D input cannot apply."""
+    for option, value in (
+        ("--views", args.views),
+        ("--dropout", None if args.dropout == "0" else args.dropout),
+        ("--calib-noise", args.calib_noise),
+        ("--keypoints", args.keypoints),
+    ):
+        if value is not None:
+            raise InputError(None, option, f"no {option} with --poses (fixed results)", value)
+
+
+def _results(args) -> dict:
+    """--poses [NAME=]FILE ... -> name -> Poses3D."""
+    from rmpl.io.poses import load_poses
+
+    out = {}
+    for item in args.poses:
+        name, sep, path = item.partition("=")
+        if not sep:
+            path = item
+            name = Path(item).parent.name or Path(item).stem
+        if name in out:
+            raise InputError(item, "--poses", "a distinct name per result (NAME=FILE)", name)
+        out[name] = load_poses(path)
+    return out
 
 
 def _command(args) -> str:
@@ -228,7 +272,16 @@ def _real_outputs(ev, args) -> dict[str, object]:
     if cfg.calib_noise is not None:
         cols.insert(2, "calib_noise")
     text = [f"# rmpl evaluate: {ev.evset.name}", "", f"`{_command(args)}`", ""]
-    text += header_lines(ev) + [""]
+    head = header_lines(ev)
+    if args.poses:  # fixed results: no association of ours, only the matching
+        head = [h for h in head if not h.startswith("- association protocol")]
+        head.insert(
+            2,
+            "- scored: finished 3D results (--poses); in every frame their people are matched "
+            "to the ground truth by Hungarian assignment on the mean joint distance "
+            "(0.5 m gate); unmatched ground truth counts as missing",
+        )
+    text += head + [""]
     text.append(markdown_table(rows, cols, pck_mm))
     if sweep:
         text += ["", "Sweep (MPJPE, mm):", ""]
