@@ -8,7 +8,8 @@ Two scene generators:
   sphere around the person (:func:`rmpl.synth.cameras.sphere_cameras`) at a given height,
   the horizontal angle between them swept.
 
-In both, 2D comes from the parametric detector model (:mod:`rmpl.synth.noise`), seeded;
+In both, 2D comes from the parametric detector model (:mod:`rmpl.synth.noise`), seeded, or
+in :func:`evaluate_synthetic` from MHP renders with a real detector's output (``shards``);
 keypoint dropout and calibration noise are applied identically to every method's input.
 
 Shape glossary: ``B`` scenes, ``V`` views, ``J`` joints (COCO-17). Metres inside, mm out.
@@ -17,9 +18,11 @@ Shape glossary: ``B`` scenes, ``V`` views, ``J`` joints (COCO-17). Metres inside
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
+from rmpl.data.mhp import ShardSource
 from rmpl.data.synthetic import PairSource, SamplerConfig, perturb_extrinsics, place_poses
 from rmpl.geometry.camera import Camera, Rig
 
@@ -77,11 +80,13 @@ def evaluate_synthetic(
     pck_threshold: float = 0.150,
     progress: bool = True,
     predictions: dict | None = None,
+    shards: str | Path | None = None,
 ) -> list[dict]:
     """MPJPE, KP* MPJPE, PA-MPJPE (mm), PCK and coverage (%) per method and view count.
 
     Args:
-        poses: held-out COCO-17 poses, shape (N, 17, 3), metres, z up.
+        poses: held-out COCO-17 poses, shape (N, 17, 3), metres, z up (ignored with
+            ``shards``).
         methods: name -> method (see :func:`rmpl.evaluate.make_method`).
         view_counts: numbers of cameras per scene.
         samples: scenes per view count (and condition).
@@ -94,6 +99,9 @@ def evaluate_synthetic(
         progress: tqdm progress bar.
         predictions: if a dict, filled with (views, dropout, calib, method) ->
             (pred, target), each (B, 17, 3) metres, for per-joint breakdowns.
+        shards: an MHP directory (``rmpl generate``) to take the scenes from instead: each
+            scene is one rendered mesh seen by ``v`` of its views drawn at random, with the
+            real detector's 2D (no noise model); make it from held-out motion.
 
     Returns:
         Rows: views, method, mpjpe, kpstar, coverage, pa_mpjpe, pck, mpjpe_common (on the
@@ -109,7 +117,10 @@ def evaluate_synthetic(
         reps = calib_reps if calib is not None else 1
         for r in range(reps):
             # The same scenes for every condition of one view count (seeded by v and rep).
-            src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=[seed, v, r])
+            if shards is not None:
+                src = ShardSource(shards, drop_rate=0.0, augment=False, seed=[seed, v, r])
+            else:
+                src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=[seed, v, r])
             batch = src.batch(samples, v, train=False)
             rng = np.random.default_rng([seed, 99, ji, r])
             kp, sc = _dropout(batch.keypoints, batch.scores.astype(float), p, rng)

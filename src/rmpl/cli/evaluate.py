@@ -35,7 +35,10 @@ DATASETS = ("synthetic", "shelf", "campus", "panoptic", "h36m")
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dataset", required=True, choices=DATASETS)
     parser.add_argument(
-        "--root", required=True, help="dataset folder (synthetic: a pose bank .npz or folder)"
+        "--root",
+        required=True,
+        help="dataset folder (synthetic: a pose bank .npz, a motion folder, or an MHP "
+        "directory from rmpl generate)",
     )
     parser.add_argument(
         "--methods",
@@ -439,21 +442,48 @@ def _run_synthetic(args, config, methods) -> int:
         raise InputError(None, "--keypoints", "no 2D files for synthetic (2D is simulated)")
     if args.samples < 1:
         raise InputError(None, "--samples", "a positive number", args.samples)
-    bank = load_poses(args.root)
-    _, held = bank.split(args.holdout.split(","))
-    if not len(held):
-        raise ValueError(f"{args.root}: no poses of held-out subjects {args.holdout}")
-    head = [
-        f"# rmpl evaluate: synthetic ({mode} cameras)",
-        "",
-        f"`{_command(args)}`",
-        "",
-        f"- poses: {len(held)} held-out poses of subjects {args.holdout} from {args.root}",
-        "- 2D: the parametric detector noise model (rmpl.synth.noise defaults), seed "
-        f"{config.seed}; every method gets the same 2D",
-        "- scored joints: all 17 COCO joints; KP*: the 12 limb joints; PCK threshold "
-        f"{args.pck:g} mm (a missing joint is wrong)",
-    ]
+    shards = _mhp_root(args.root)
+    if shards is not None:
+        if mode == "sphere":
+            raise InputError(
+                args.root,
+                "--cameras sphere",
+                "a pose bank (MHP renders have their own cameras)",
+                "an MHP directory",
+            )
+        meta = json.loads((shards / "manifest.json").read_text())
+        counts = meta.get("counts", {})
+        held = None
+        head = [
+            "# rmpl evaluate: synthetic (MHP renders)",
+            "",
+            f"`{_command(args)}`",
+            "",
+            f"- scenes: MHP directory {args.root} ({counts.get('meshes', '?')} meshes x "
+            f"{counts.get('views', '?')} views; its subjects: "
+            f"{', '.join(meta.get('pose_bank', {}).get('subjects', {})) or '?'}); each "
+            "scene is one mesh seen by V of its views drawn at random",
+            f"- 2D: the real detector's output on the renders ({meta.get('detector', '?')}), "
+            f"seed {config.seed}; every method gets the same 2D",
+            "- scored joints: all 17 COCO joints regressed from the mesh; KP*: the 12 limb "
+            f"joints; PCK threshold {args.pck:g} mm (a missing joint is wrong)",
+        ]
+    else:
+        bank = load_poses(args.root)
+        _, held = bank.split(args.holdout.split(","))
+        if not len(held):
+            raise ValueError(f"{args.root}: no poses of held-out subjects {args.holdout}")
+        head = [
+            f"# rmpl evaluate: synthetic ({mode} cameras)",
+            "",
+            f"`{_command(args)}`",
+            "",
+            f"- poses: {len(held)} held-out poses of subjects {args.holdout} from {args.root}",
+            "- 2D: the parametric detector noise model (rmpl.synth.noise defaults), seed "
+            f"{config.seed}; every method gets the same 2D",
+            "- scored joints: all 17 COCO joints; KP*: the 12 limb joints; PCK threshold "
+            f"{args.pck:g} mm (a missing joint is wrong)",
+        ]
     if mode == "sphere":
         return _run_sphere(args, config, held.poses, methods, head)
     from rmpl.evaluate import markdown_table, pose_metrics, write_csv
@@ -462,7 +492,7 @@ def _run_synthetic(args, config, methods) -> int:
     counts = _view_counts(args.views)
     preds: dict = {}
     rows = evaluate_synthetic(
-        held.poses,
+        None if held is None else held.poses,
         methods,
         counts,
         args.samples,
@@ -472,11 +502,15 @@ def _run_synthetic(args, config, methods) -> int:
         calib_reps=config.calib_reps if config.calib_noise else 1,
         pck_threshold=config.pck_threshold,
         predictions=preds,
+        shards=shards,
     )
-    head.append(
-        f"- scenes: {args.samples} per view count and condition, random camera setups "
-        "(preset 'universal'), the person anywhere in a 4 x 4 m room"
-    )
+    if shards is None:
+        head.append(
+            f"- scenes: {args.samples} per view count and condition, random camera setups "
+            "(preset 'universal'), the person anywhere in a 4 x 4 m room"
+        )
+    else:
+        head.append(f"- {args.samples} scenes per view count and condition")
     if config.calib_noise:
         head.append(
             f"- calibration noise {config.calib_noise[0]:g} deg / "
@@ -522,6 +556,12 @@ def _run_synthetic(args, config, methods) -> int:
         if not args.no_plots:
             _synthetic_plots(out, rows, errors, config)
     return 0
+
+
+def _mhp_root(root: str) -> Path | None:
+    """``root`` when it is an MHP directory (a manifest.json beside shards), else None."""
+    p = Path(root)
+    return p if (p / "manifest.json").is_file() else None
 
 
 def _joint(j: int) -> str:
