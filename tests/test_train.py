@@ -90,6 +90,44 @@ def test_config_errors_are_clear(tmp_path):
         TrainConfig.from_toml(bad, ["steps"])
 
 
+def test_noise_file(tmp_path):
+    """A fitted [noise] table (rmpl generate --stats) feeds the noise model; explicit
+    ``noise`` overrides win; a file without the table is one clear error."""
+    from rmpl.synth.noise import NoiseConfig
+
+    fitted = tmp_path / "noise.toml"
+    fitted.write_text("[noise]\noutlier_rate = 0.125\nswap_rate = 0.25\n")
+    cfg = TrainConfig.from_dict({"noise_file": str(fitted), "noise": {"swap_rate": 0.5}})
+    noise = cfg.noise_config()
+    assert noise.outlier_rate == 0.125 and noise.swap_rate == 0.5
+    assert noise.conf_visible == NoiseConfig().conf_visible
+    empty = tmp_path / "empty.toml"
+    empty.write_text("steps = 3\n")
+    with pytest.raises(InputError, match=r"empty\.toml.*\[noise\] table"):
+        TrainConfig.from_dict({"noise_file": str(empty)})
+    wrong = tmp_path / "wrong.toml"
+    wrong.write_text("[noise]\nloudness = 3\n")
+    with pytest.raises(InputError, match="loudness"):
+        TrainConfig.from_dict({"noise_file": str(wrong)})
+    with pytest.raises(InputError, match="nope.toml"):
+        TrainConfig.from_dict({"noise_file": str(tmp_path / "nope.toml")})
+
+
+def test_validation_batches_keep_the_true_cameras(poses):
+    """Calibration-noise augmentation perturbs training rays only: validation is clean."""
+    from rmpl.data.synthetic import PairSource, SamplerConfig
+
+    def draw(noisy: bool, train: bool):
+        cfg = SamplerConfig(drop_rate=0.0, calib_noise_deg=5.0 * noisy, calib_noise_m=0.1 * noisy)
+        return PairSource(poses[0], cfg, seed=0).batch(16, 3, train=train)
+
+    for train_batch in (True, False):
+        a, b = draw(True, train_batch), draw(False, train_batch)
+        assert np.array_equal(a.keypoints, b.keypoints, equal_nan=True)  # same scenes
+        assert np.allclose(a.R, b.R) != train_batch
+        assert np.allclose(a.rays, b.rays) != train_batch
+
+
 def test_trains_on_mhp_shards(poses, tmp_path):
     for mod in ("anny", "moderngl", "mediapipe"):
         pytest.importorskip(mod)

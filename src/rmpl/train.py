@@ -23,6 +23,7 @@ import numpy as np
 import torch
 
 from rmpl.data.synthetic import PairSource, SamplerConfig
+from rmpl.errors import InputError
 from rmpl.geometry.triangulate import _dlt
 from rmpl.io.atomic import atomic_path
 from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, build_model, camera_features
@@ -56,7 +57,10 @@ class TrainConfig:
         seed: random seed.
         threads: torch CPU threads.
         sampler: :class:`SamplerConfig` overrides.
-        noise: :class:`NoiseConfig` overrides.
+        noise: :class:`NoiseConfig` overrides (applied over ``noise_file``).
+        noise_file: a TOML file with a ``[noise]`` table, e.g. the detector noise fitted to
+            MHP renders by ``rmpl generate --stats DIR`` (``DIR/noise.toml``); "" = the
+            defaults. The parametric validation set uses the same noise model.
         time_limit: stop (with a checkpoint) after this many seconds of this invocation.
         mhp: MHP shard directories (``rmpl generate``) to train on; empty = parametric
             pairs only. Meshes posed from ``holdout`` subjects are left out.
@@ -85,6 +89,7 @@ class TrainConfig:
     threads: int = 2
     sampler: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
+    noise_file: str = ""
     time_limit: float = 0.0
     mhp: tuple[str, ...] = ()
     mhp_weight: float = 1.0
@@ -104,7 +109,7 @@ class TrainConfig:
             raise ValueError(f"unknown preset {cfg.preset!r}; choose from {sorted(PRESETS)}")
         cfg.model_config()  # validates overrides
         SamplerConfig(**cfg.sampler)
-        NoiseConfig.from_dict(cfg.noise)
+        cfg.noise_config()
         if cfg.mhp and not 0 < cfg.mhp_weight <= 1:
             raise ValueError(f"mhp_weight must be in (0, 1], got {cfg.mhp_weight}")
         if not 1 <= cfg.min_views <= cfg.max_views:
@@ -129,6 +134,27 @@ class TrainConfig:
                 target = target.setdefault(p, {})
             target[leaf] = parsed
         return cls.from_dict(d)
+
+    def noise_config(self) -> NoiseConfig:
+        """The detector noise model: ``noise_file``'s ``[noise]`` table, then ``noise``."""
+        table = {}
+        if self.noise_file:
+            path = Path(self.noise_file)
+            try:
+                with open(path, "rb") as f:
+                    doc = tomllib.load(f)
+            except OSError as e:
+                raise InputError(path, None, "a readable TOML file", e.strerror) from None
+            except tomllib.TOMLDecodeError as e:
+                raise InputError(path, None, "valid TOML", str(e)) from None
+            table = doc.get("noise")
+            if not isinstance(table, dict):
+                raise InputError(path, "noise", "a [noise] table (rmpl generate --stats)", None)
+        try:
+            return NoiseConfig.from_dict({**table, **self.noise})
+        except (TypeError, ValueError) as e:
+            where = self.noise_file or None
+            raise InputError(where, "noise", "NoiseConfig fields", str(e)) from None
 
     def model_config(self) -> RMPLConfig:
         base = PRESETS[self.preset]
@@ -180,14 +206,15 @@ def validation_sets(
 ) -> dict[int, object]:
     """Fixed validation batches per number of views (seeded, no keypoint removal)."""
     sampler = replace(SamplerConfig(**cfg.sampler), drop_rate=0.0)
-    src = PairSource(poses, sampler, NoiseConfig.from_dict(cfg.noise), seed=12345)
+    sampler = replace(sampler, calib_noise_deg=0.0, calib_noise_m=0.0)
+    src = PairSource(poses, sampler, cfg.noise_config(), seed=12345)
     return {v: src.batch(cfg.val_size, v, train=False) for v in views}
 
 
 def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
     """The parametric pair source, MHP shards, or a mix of both (see ``mhp_weight``)."""
     sampler = SamplerConfig(**cfg.sampler)
-    pairs = PairSource(poses_train, sampler, NoiseConfig.from_dict(cfg.noise), cfg.seed)
+    pairs = PairSource(poses_train, sampler, cfg.noise_config(), cfg.seed)
     if not cfg.mhp:
         return pairs
     from rmpl.data.mhp import MixSource, ShardSource

@@ -55,7 +55,8 @@ class SamplerConfig:
         scale_range: uniform range of a body-size factor.
         mirror: probability of a left/right mirrored pose.
         drop_rate: random keypoint removal at training (thesis 6.11.2).
-        calib_noise_deg: std of extrinsic rotation noise on the rays (0 = off).
+        calib_noise_deg: std of extrinsic rotation noise on the rays of training batches
+            (0 = off; validation batches, ``train=False``, keep the true cameras).
         calib_noise_m: std of extrinsic translation noise on the rays, metres.
     """
 
@@ -152,7 +153,7 @@ class PairSource:
             scores = np.where(drop, 0.0, scores)
             kp = np.where(drop[..., None], np.nan, kp)
         Rr, tr = R, t
-        if cfg.calib_noise_deg > 0 or cfg.calib_noise_m > 0:
+        if train and (cfg.calib_noise_deg > 0 or cfg.calib_noise_m > 0):
             Rr, tr = perturb_extrinsics(R, t, cfg.calib_noise_deg, cfg.calib_noise_m, rng)
         rays = rays_from_keypoints(kp, K=K, R=Rr, t=tr)
         rays = np.where(scores[..., None] > 0, rays, 0.0)
