@@ -31,10 +31,16 @@ T abl/pixels --set 'model.inputs="pixels"' --set model.geometric=false --set mod
 T abl/pixels_calib --set 'model.inputs="pixels+calib"' --set model.geometric=false \
     --set model.recenter=false
 T abl/mlp --set 'model.architecture="mlp"' --set model.geometric=false
+T abl/drop04 --set sampler.drop_rate=0.4
 if [ -n "$MHP_TRAIN" ]; then
     T mhp/B_parametric --set mhp_val="\"$MHP_VAL\""
     T mhp/C_mhp --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]"
     T mhp/D_mix --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]" --set mhp_weight=0.5
+    # The parametric source with the detector noise fitted to the MHP renders, alone and mixed.
+    [ -f "$MHP_TRAIN/noise.toml" ] || rmpl generate --stats "$MHP_TRAIN" > /dev/null
+    T mhp/E_fitted --set mhp_val="\"$MHP_VAL\"" --set noise_file="\"$MHP_TRAIN/noise.toml\""
+    T mhp/F_mix_fitted --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]" \
+        --set mhp_weight=0.5 --set noise_file="\"$MHP_TRAIN/noise.toml\""
 fi
 # Presets at an equal budget of wall time (about 10 minutes each on one thread).
 rmpl train configs/default.toml --out "$RUNS/eq/small" --set poses="\"$BANK\"" \

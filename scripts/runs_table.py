@@ -3,7 +3,10 @@
 Every run of one table validates on the same fixed held-out batches (CMU subject 03,
 seeded, no keypoint removal), so their rows compare like with like.
 
-Usage: python scripts/runs_table.py RUN_DIR [RUN_DIR ...] [--views 1,2,3,4,5]
+With ``--mhp`` the columns are the second validation, on held-out MHP renders with the
+real detector's 2D (runs trained with ``mhp_val``).
+
+Usage: python scripts/runs_table.py RUN_DIR [RUN_DIR ...] [--views 1,2,3,4,5] [--mhp]
 """
 
 from __future__ import annotations
@@ -24,7 +27,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--views", default="1,2,3,4,5")
+    parser.add_argument("--mhp", action="store_true", help="the MHP validation columns")
     args = parser.parse_args()
+    pre = "mhp_" if args.mhp else ""
     views = [int(v) for v in args.views.split(",")]
     head = " | ".join(f"{v} views" for v in views)
     print(f"| run | params | steps | minutes | KP* MPJPE (mm): {head} |")
@@ -34,16 +39,14 @@ def main() -> None:
         rec = last_record(run)
         meta = json.loads((run / "config.json").read_text())
         params = meta.get("training", {}).get("parameters", 0)
-        cells = " | ".join(f"{rec.get(f'kpstar_{v}v', float('nan')):.1f}" for v in views)
+        cells = " | ".join(f"{rec.get(f'{pre}kpstar_{v}v', float('nan')):.1f}" for v in views)
         print(
             f"| {run.name} | {params / 1e6:.2f}M | {rec['step']} | {rec['seconds'] / 60:.1f} "
             f"| {cells} |"
         )
         tri = tri or rec
-    cells = " | ".join(
-        f"{tri[f'triangulation_kpstar_{v}v']:.1f}" if f"triangulation_kpstar_{v}v" in tri else "—"
-        for v in views
-    )
+    key = pre + "triangulation_kpstar_{}v"
+    cells = " | ".join(f"{tri[key.format(v)]:.1f}" if key.format(v) in tri else "—" for v in views)
     print(f"| DLT (triangulable joints only) | | | | {cells} |")
 
 
