@@ -4,6 +4,7 @@ accuracy, resume after an interrupted run, --stats, Ray."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -176,7 +177,7 @@ def test_generate_from_motion_holds_out_subjects(shared_data, tmp_path):
             "num_meshes": 2,
             "views": 2,
             "shard_size": 2,
-            "batch_size": 2,
+            "batch_size": 1,  # two batches in the shard: the second must stay paired too
             "image_size": [320, 240],
             "occlusion_rate": 0.5,
         }
@@ -186,6 +187,14 @@ def test_generate_from_motion_holds_out_subjects(shared_data, tmp_path):
         assert set(z["subject"].tolist()) == {"12"}
         assert all("/12/" in c for c in z["clip"]) and (z["frame"] >= 0).all()
         assert 0 < z["occluded"].mean() < 1
+        occluded = {k: z[k] for k in ("joints3d", "K", "R", "t", "projected")}
+    # Without squares: the same meshes and cameras (the occlusion experiment is paired).
+    clean = tmp_path / "clean"
+    generate(dataclasses.replace(cfg, occlusion_rate=0.0), clean, progress=False)
+    with np.load(shard_path(clean, 0)) as z:
+        for k, v in occluded.items():
+            np.testing.assert_array_equal(z[k], v, err_msg=k)
+        assert not z["occluded"].any()
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert set(manifest["pose_bank"]["subjects"]) == {"12"}
 

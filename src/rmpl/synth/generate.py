@@ -371,6 +371,9 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     if n <= 0:
         raise ValueError(f"shard {index} is beyond num_meshes={cfg.num_meshes}")
     rng = np.random.default_rng([cfg.seed, index])
+    # The squares draw from their own stream: a set made with occlusion_rate > 0 has the
+    # same meshes, cameras and images as the one made without (a paired experiment).
+    occ_rng = np.random.default_rng([cfg.seed, index, 1])
     times = {"pose": 0.0, "render": 0.0, "detect": 0.0}
     parts: dict[str, list] = {k: [] for k in SHARD_ARRAYS}
     rejected = 0
@@ -394,7 +397,7 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
         occ = np.zeros((b * V, 17), bool)
         if cfg.occlusion_rate > 0:
             occ = occlude(
-                images, proj.reshape(b * V, 17, 2), cfg.occlusion_rate, cfg.occlusion_size, rng
+                images, proj.reshape(b * V, 17, 2), cfg.occlusion_rate, cfg.occlusion_size, occ_rng
             )
         t2 = time.perf_counter()
         kp2d, scores = worker.detector(images)
