@@ -9,6 +9,7 @@ from __future__ import annotations
 import resource
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -127,7 +128,17 @@ def run_bench(
 
 
 def peak_memory_mb() -> float:
-    """Peak resident memory of this process so far, MB."""
+    """Peak resident memory of this process so far, MB.
+
+    Linux's ``VmHWM`` (reset by ``exec``, so a child started by :func:`subprocess.run`
+    reports its own peak); ``ru_maxrss`` elsewhere, which a child inherits from its parent.
+    """
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return float(line.split()[1]) / 1024
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
