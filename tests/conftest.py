@@ -31,3 +31,32 @@ def pytest_configure(config):
     import torch
 
     torch.set_num_threads(1)
+
+
+_GL: list = []  # the headless-OpenGL probe, run once: [None] = works, [reason] = does not
+
+
+def synth_ready(*modules: str) -> Path:
+    """Skip unless the MHP stack runs here; return anny's cache directory.
+
+    Needs the given modules (any of "anny", "moderngl", "mediapipe"), and with "moderngl"
+    a headless EGL context. The cache is ``$ANNY_CACHE_DIR``, else ``~/.cache/rmpl/anny``,
+    which the first test that needs it builds (about 3.5 minutes and 790 MB, once).
+    """
+    for mod in modules:
+        pytest.importorskip(mod)
+    if "moderngl" in modules:
+        if not _GL:
+            import moderngl
+
+            try:
+                moderngl.create_standalone_context(backend="egl").release()
+                _GL.append(None)
+            except Exception as e:  # no EGL driver on this machine
+                _GL.append(str(e) or type(e).__name__)
+        if _GL[0] is not None:
+            pytest.skip(f"no headless OpenGL context: {_GL[0]}")
+    cache = Path(os.environ.get("ANNY_CACHE_DIR") or Path.home() / ".cache" / "rmpl" / "anny")
+    cache.mkdir(parents=True, exist_ok=True)
+    os.environ["ANNY_CACHE_DIR"] = str(cache)
+    return cache

@@ -2,15 +2,13 @@
 
 The bad-input and cache tests need only OpenCV and use a stand-in detector. The end-to-end
 test runs the real MediaPipe detector on videos of an anny body rendered here, so it needs
-mediapipe, moderngl (EGL), anny and a built anny cache in ANNY_CACHE_DIR:
-
-    ANNY_CACHE_DIR=/work/cache/anny /work/venv-synth/bin/python -m pytest tests/test_detect2d.py
+mediapipe, moderngl (EGL) and anny (rmpl[synth]); anny's cache is $ANNY_CACHE_DIR or is
+built on first use (tests.conftest.synth_ready).
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +19,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig, look_at
 from rmpl.io.calibration import save_rig
 from rmpl.skeleton import COCO17
+from tests.conftest import synth_ready
 
 cv2 = pytest.importorskip("cv2")
 
@@ -260,13 +259,7 @@ def test_run_videos_end_to_end_with_a_stand_in_detector(tmp_path, monkeypatch):
 
 
 def _anny_cache() -> Path:
-    pytest.importorskip("mediapipe")
-    pytest.importorskip("moderngl")
-    pytest.importorskip("anny")
-    path = os.environ.get("ANNY_CACHE_DIR")
-    if not path or not Path(path).is_dir() or not any(Path(path).iterdir()):
-        pytest.skip("set ANNY_CACHE_DIR to a built anny cache (the first build takes minutes)")
-    return Path(path)
+    return synth_ready("mediapipe", "moderngl", "anny")
 
 
 def render_walk(folder: Path, num_frames: int = 5, views: int = 3, fps: float = 10.0):

@@ -6,15 +6,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rmpl.errors import InputError
 from rmpl.synth.generate import GenerateConfig, generate, list_shards, occlude, shard_path
+from tests.conftest import synth_ready
 
 # Stated accuracy: on 400x400 renders (h36m cameras scaled to fit, person ~150-250 px tall),
 # MediaPipe's confident keypoints (score > 0.5) lie within a median of 10 px of the mesh's
@@ -80,11 +79,7 @@ def test_occlude_pastes_black_squares():
 
 
 def _needs_synth():
-    for mod in ("anny", "moderngl", "mediapipe"):
-        pytest.importorskip(mod)
-    cache = os.environ.get("ANNY_CACHE_DIR")
-    if not cache or not Path(cache).is_dir():
-        pytest.skip("ANNY_CACHE_DIR does not point to a built anny cache")
+    synth_ready("anny", "moderngl", "mediapipe")
 
 
 @pytest.fixture(scope="module")

@@ -1,16 +1,15 @@
 """Retargeting CMU motion onto anny: after retargeting, anny's regressed COCO-17 limbs point
-where the mocap's limbs point. Needs anny (+ a built cache via ANNY_CACHE_DIR) and the CMU
+where the mocap's limbs point. Needs anny (its cache is built on first use, see
+tests.conftest.synth_ready) and the CMU
 data of ../shared/data."""
 
 from __future__ import annotations
-
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rmpl.synth.retarget import implausible, limb_angles, min_rotation
+from tests.conftest import synth_ready
 
 # Stated tolerance: over sampled frames, the median angle between anny's regressed limb
 # directions (upper arms, forearms, thighs, shanks) and the mocap's is below 6 degrees and
@@ -45,10 +44,7 @@ def test_implausible_flags_crossed_legs():
 
 
 def _body_model():
-    pytest.importorskip("anny")
-    cache = os.environ.get("ANNY_CACHE_DIR")
-    if not cache or not Path(cache).is_dir():
-        pytest.skip("ANNY_CACHE_DIR does not point to a built anny cache")
+    cache = synth_ready("anny")
     from rmpl.synth.body import BodyModel
 
     return BodyModel(cache_dir=cache)

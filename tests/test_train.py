@@ -4,7 +4,6 @@ MHP shards as a source (the last skipped without anny, moderngl and mediapipe)."
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +12,7 @@ import torch
 
 from rmpl.errors import InputError
 from rmpl.train import TrainConfig, load_checkpoint, train
+from tests.conftest import synth_ready
 
 EXAMPLE = Path(__file__).parents[1] / "src/rmpl/examples/walk/ground_truth.npz"
 
@@ -129,11 +129,7 @@ def test_validation_batches_keep_the_true_cameras(poses):
 
 
 def test_trains_on_mhp_shards(poses, tmp_path):
-    for mod in ("anny", "moderngl", "mediapipe"):
-        pytest.importorskip(mod)
-    cache = os.environ.get("ANNY_CACHE_DIR")
-    if not cache or not Path(cache).is_dir():
-        pytest.skip("ANNY_CACHE_DIR does not point to a built anny cache")
+    synth_ready("anny", "moderngl", "mediapipe")
     from rmpl.synth.generate import GenerateConfig, generate
 
     shards = tmp_path / "mhp"

@@ -1,9 +1,10 @@
 """Tests for the MHP detector adapters, and the MHP render + detect benchmark.
 
 The MediaPipe tests need ``mediapipe==0.10.14``; the ones on rendered bodies also need
-moderngl (EGL) and a built anny cache in ANNY_CACHE_DIR. The benchmark only runs when asked:
+moderngl (EGL) and anny (its cache: $ANNY_CACHE_DIR or built on first use). The benchmark
+only runs when asked:
 
-    ANNY_CACHE_DIR=/work/cache/anny python -m pytest tests/synth/test_detect.py -m benchmark -s
+    python -m pytest tests/synth/test_detect.py -m benchmark -s
 
 It prints per-stage costs and the detector's error against the projected regressed
 keypoints, and writes example images and ``report.json`` to $RMPL_MHP_EXAMPLES
@@ -23,6 +24,7 @@ import pytest
 from rmpl.geometry.camera import look_at, project
 from rmpl.skeleton import COCO17
 from rmpl.synth.detect import DETECTORS, Detector, MediaPipeDetector, as_image_list, zero_outside
+from tests.conftest import synth_ready
 
 # ---------------------------------------------------------------- pure numpy
 
@@ -70,12 +72,7 @@ def test_mediapipe_misses_are_nan(mediapipe_detector):
 
 
 def _anny_cache() -> Path:
-    pytest.importorskip("anny")
-    pytest.importorskip("moderngl")
-    path = os.environ.get("ANNY_CACHE_DIR")
-    if not path or not Path(path).is_dir() or not any(Path(path).iterdir()):
-        pytest.skip("set ANNY_CACHE_DIR to a built anny cache (the first build takes minutes)")
-    return Path(path)
+    return synth_ready("anny", "moderngl")
 
 
 def _front_view(k: np.ndarray, width: int = 640, height: int = 480, distance: float = 3.5):

@@ -1,10 +1,9 @@
 """Tests for the MHP render core: random cameras (pure numpy, always run), the OpenGL
 renderer (needs moderngl + EGL) and anny bodies (needs anny and a built cache, found through
-ANNY_CACHE_DIR; building one takes minutes, so the tests skip rather than build it)."""
+ANNY_CACHE_DIR, else built on first use in ~/.cache/rmpl/anny: see tests.conftest.synth_ready)."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from rmpl.synth.cameras import (
     sample_cameras,
 )
 from rmpl.synth.render import gl_projection, random_background, random_outfits, vertex_normals
+from tests.conftest import synth_ready
 
 # ---------------------------------------------------------------- cameras (pure numpy)
 
@@ -254,12 +254,8 @@ def test_render_batch_backgrounds_and_sizes(box_renderer):
 
 
 def anny_cache() -> Path:
-    """A built anny cache from ANNY_CACHE_DIR, else skip (building one takes minutes)."""
-    pytest.importorskip("anny")
-    path = os.environ.get("ANNY_CACHE_DIR")
-    if not path or not Path(path).is_dir() or not any(Path(path).iterdir()):
-        pytest.skip("set ANNY_CACHE_DIR to a built anny cache (the first build takes minutes)")
-    return Path(path)
+    """anny's cache (built on first use), else skip when anny is missing."""
+    return synth_ready("anny")
 
 
 @pytest.fixture(scope="module")
