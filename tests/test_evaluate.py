@@ -580,55 +580,18 @@ def test_score_finished_results(fixtures, tmp_path, capsys):
     assert cov["s"] < 100
 
     # Through the command line, from a file.
+    shelf = ["--dataset", "shelf", "--root", root, "--2d", "annotations"]
     save_poses(res, tmp_path / "run" / "poses.npz")
     out = tmp_path / "eval"
-    assert (
-        _run(
-            "--dataset",
-            "shelf",
-            "--root",
-            root,
-            "--2d",
-            "annotations",
-            "--poses",
-            tmp_path / "run" / "poses.npz",
-            "--out",
-            out,
-        )
-        == 0
-    )
+    assert _run(*shelf, "--poses", tmp_path / "run" / "poses.npz", "--out", out) == 0
     assert [r["method"] for r in _rows(out / "results.csv")] == ["run"]
     assert "finished 3D results" in (out / "results.md").read_text()
 
     # Frames that do not overlap, and options that cannot apply, are one-line errors.
     save_poses(Poses3D(points=gt, frames=part.frames + 10_000), tmp_path / "far.npz")
     capsys.readouterr()
-    assert (
-        _run(
-            "--dataset",
-            "shelf",
-            "--root",
-            root,
-            "--2d",
-            "annotations",
-            "--poses",
-            tmp_path / "far.npz",
-        )
-        == 2
-    )
+    assert _run(*shelf, "--poses", tmp_path / "far.npz") == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "frames" in err[0], err
-    assert (
-        _run(
-            "--dataset",
-            "shelf",
-            "--root",
-            root,
-            "--poses",
-            tmp_path / "far.npz",
-            "--views",
-            "pairs",
-        )
-        == 2
-    )
+    assert _run(*shelf, "--poses", tmp_path / "far.npz", "--views", "pairs") == 2
     assert "--views" in capsys.readouterr().err
