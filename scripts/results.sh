@@ -61,8 +61,14 @@ for r in base no_conf recenter_only literal mlp maxv2 maxv3 maxv8 drop04; do
 done
 [ -n "$ABL" ] && E shelf_ablations --dataset shelf --root "$S" --methods "triangulate$ABL" \
     --views 1,2,3,4,5
-[ -n "$ABL" ] && E shelf_ablations_dropout --dataset shelf --root "$S" \
-    --methods "triangulate$ABL" --views all,pairs --dropout 0,0.4
+have "$RUNS/abl/base" "$RUNS/abl/drop04" && E shelf_dropout_training --dataset shelf \
+    --root "$S" --methods "triangulate,rmpl:$RUNS/abl/base,rmpl:$RUNS/abl/drop04" \
+    --views all,pairs --dropout 0,0.2,0.4,0.6
+for p in "" _occ0.2 _occ0.4; do
+    have "$RUNS/abl/drop04" "data/mhp_val$p" && E "drop_mhp_val$p" --dataset synthetic \
+        --root "data/mhp_val$p" --methods "triangulate,robust,rmpl:$RUNS/abl/base,rmpl:$RUNS/abl/drop04" \
+        --views 2,3,5 --samples 1000
+done
 
 # MHP: parametric noise vs MHP renders vs mixes, on held-out renders and on Shelf.
 MHP=""
