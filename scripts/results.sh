@@ -86,3 +86,16 @@ fi
 # The presets at an equal budget of training time.
 have "$RUNS/eq/small" "$RUNS/eq/paper" && E shelf_presets --dataset shelf --root "$S" \
     --methods "triangulate,rmpl:$RUNS/eq/small,rmpl:$RUNS/eq/paper" --views 1,2,3,4,5
+
+# Candidates for the shipped model (docs/results.md, "The shipped model"): selected on the
+# held-out MHP renders, reported on Shelf.
+C=""
+for r in default_mix default_mix_drop04; do [ -e "$RUNS/$r" ] && C="$C,rmpl:$RUNS/$r"; done
+if [ -n "$C" ]; then
+    E select_synth --dataset synthetic --root "$BANK" --methods "triangulate,rmpl$C" \
+        --views 2,3,4,5 --samples 1000
+    have data/mhp_val && E select_mhp_val --dataset synthetic --root data/mhp_val \
+        --methods "triangulate,robust,rmpl$C" --views 2,3,4,5 --samples 1000
+    E select_shelf --dataset shelf --root "$S" --methods "triangulate,robust,rmpl$C" \
+        --views 2,3,4,5
+fi
