@@ -47,3 +47,12 @@ rmpl train configs/default.toml --out "$RUNS/eq/small" --set poses="\"$BANK\"" \
     --set steps=700 --set batch_size=256 --set val_every=350 --set threads=1
 rmpl train configs/paper.toml --out "$RUNS/eq/paper" --set poses="\"$BANK\"" \
     --set steps=250 --set batch_size=32 --set val_every=125 --set lr=3e-4 --set threads=1
+# Full-length candidates for the shipped model (docs/results.md, "The shipped model").
+if [ -n "$MHP_TRAIN" ]; then
+    rmpl train configs/default.toml --out "$RUNS/default_mix" --set poses="\"$BANK\"" \
+        --set mhp="[\"$MHP_TRAIN\"]" --set mhp_weight=0.5 --set mhp_val="\"$MHP_VAL\"" \
+        --set steps=2500 --set threads=1
+    rmpl train configs/default.toml --out "$RUNS/default_mix_drop04" --set poses="\"$BANK\"" \
+        --set mhp="[\"$MHP_TRAIN\"]" --set mhp_weight=0.5 --set mhp_val="\"$MHP_VAL\"" \
+        --set steps=2500 --set sampler.drop_rate=0.4 --set threads=2
+fi
