@@ -1,6 +1,7 @@
 """Print the compact tables of docs/results.md from the CSVs that scripts/results.sh wrote.
 
-Usage: python scripts/results_tables.py [RESULTS_DIR]   (default: results)
+Usage: python scripts/results_tables.py [RESULTS_DIR [OCCLUSION_PLOT.png]]
+(default: results; with a second argument it also draws MPJPE vs occlusion on the renders)
 
 Each block is headed by the results folder it reads; a folder that is missing is skipped.
 """
@@ -123,6 +124,34 @@ def mhp_occlusion() -> None:
             print(f"| {v} | {m} | " + " | ".join(cells) + " |")
 
 
+def occlusion_plot(out: Path) -> None:
+    """MPJPE on common joints vs the occlusion-square probability on the MHP renders."""
+    from rmpl.evaluate_plots import sweep_plot
+
+    sets = {0.0: "mhp_val", 0.2: "mhp_val_occ0.2", 0.4: "mhp_val_occ0.4"}
+    data = {p: rows(name) for p, name in sets.items()}
+    if any(v is None for v in data.values()):
+        return
+    curves = {}
+    for m in ("triangulate", "robust", "rmpl"):
+        for v in ("2", "5"):
+            ys = [
+                float(
+                    [x for x in data[p] if x["views"] == v and x["method"] == m][0]["mpjpe_common"]
+                )
+                for p in sets
+            ]
+            curves[f"{m} | {v} views"] = (list(sets), ys)
+    sweep_plot(
+        curves,
+        out,
+        "probability of a black 50 px square over each joint, before MediaPipe",
+        "MPJPE, common joints (mm)",
+        "MHP renders of held-out motion: MPJPE vs occlusion",
+    )
+    print(f"\nwrote {out}")
+
+
 def simple(name: str) -> None:
     r = rows(name)
     if r is None:
@@ -147,3 +176,5 @@ if __name__ == "__main__":
     for name in ("campus_fixture", "panoptic_fixture", "h36m_fixture"):
         simple(name)
     mhp_occlusion()
+    if len(sys.argv) > 2:
+        occlusion_plot(Path(sys.argv[2]))
