@@ -13,6 +13,9 @@ Examples:
   rmpl evaluate --dataset synthetic --root poses.npz --views 1,2,3,4,5 --out results/synth
   rmpl evaluate --dataset synthetic --root poses.npz --cameras sphere --heights 2.2,3.2,4 \\
       --angles 10,20,30,40,50,60,70,80,90,100,110,120,130,140,150,160,170,180
+  rmpl evaluate --dataset synthetic --root mhp_val/ --views 2,3,5   (MHP renders, real 2D)
+  rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --poses run/poses.npz \\
+      other=pose2sim.trc   (score finished results: rmpl run output, a TRC)
 """
 
 from __future__ import annotations
