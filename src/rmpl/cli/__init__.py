@@ -40,7 +40,13 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # command not built yet
             raise
         mod.register(
-            sub.add_parser(name, help=mod.__doc__.splitlines()[0], description=mod.__doc__)
+            sub.add_parser(
+                name,
+                help=mod.__doc__.splitlines()[0],
+                description=mod.__doc__,
+                # keep the docstrings' example lines as written
+                formatter_class=argparse.RawDescriptionHelpFormatter,
+            )
         )
     return parser
 
