@@ -121,3 +121,30 @@ def test_run_cli_bad_formats(tmp_path, capsys):
     assert code == 2
     assert "fbx" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_short_ghost_tracks_are_dropped():
+    """A third 'person' seen in every view for 2 frames only (a false detection) makes a
+    track of its own; min_track_frames removes it, 1 keeps it."""
+    rig, X, kp, sc = two_walkers()
+    T, V = kp.shape[:2]
+    ghost = X[0, 0] + [0.0, 2.5, 0.0]  # 2.5 m away from both walkers
+    g2d = rig.project(ghost)  # (V, 17, 2)
+    kp3 = np.concatenate([kp, np.full((T, V, 1, 17, 2), np.nan)], axis=2)
+    sc3 = np.concatenate([sc, np.zeros((T, V, 1, 17))], axis=2)
+    kp3[20:22, :, 2] = g2d
+    sc3[20:22, :, 2] = 0.9
+    cfg = RunConfig(method="triangulate")
+    poses = run(kp3, sc3, rig, fps=30.0, config=cfg, progress=False)
+    assert poses.points.shape[1] == 2
+    kept = run(
+        kp3,
+        sc3,
+        rig,
+        fps=30.0,
+        config=RunConfig(method="triangulate", min_track_frames=1),
+        progress=False,
+    )
+    assert kept.points.shape[1] == 3
+    with pytest.raises(ValueError, match="min_track_frames"):
+        RunConfig(min_track_frames=0)

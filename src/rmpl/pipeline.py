@@ -57,6 +57,8 @@ class RunConfig:
         swap_check: "robust": test left/right swaps per view.
         track_distance: gate of the tracker, metres of mean joint distance.
         max_missed: frames a track survives without a match.
+        min_track_frames: drop tracks present in fewer frames than this (ghosts from a
+            one-frame false association); 1 keeps every track.
         association: cross-view association thresholds.
     """
 
@@ -76,6 +78,7 @@ class RunConfig:
     swap_check: bool = True
     track_distance: float = 0.5
     max_missed: int = 10
+    min_track_frames: int = 3
     association: AssociationConfig = field(default_factory=AssociationConfig)
 
     def __post_init__(self) -> None:
@@ -83,6 +86,8 @@ class RunConfig:
             raise ValueError(f"method must be one of {METHODS}, got {self.method!r}")
         if self.filter not in FILTERS:
             raise ValueError(f"filter must be one of {FILTERS}, got {self.filter!r}")
+        if self.min_track_frames < 1:
+            raise ValueError(f"min_track_frames must be >= 1, got {self.min_track_frames}")
 
 
 def associate_frames(
@@ -218,6 +223,13 @@ def track_people(
     for t in range(T):
         for p in np.nonzero(index[t] >= 0)[0]:
             views[t, p] = num_views[t][index[t, p]]
+    frames = np.isfinite(tracks).all(-1).any(-1).sum(0)  # (P,) frames each track is present
+    keep = frames >= config.min_track_frames
+    if keep.any() and not keep.all():
+        log.info(
+            "dropping %d tracks seen in < %d frames", int((~keep).sum()), config.min_track_frames
+        )
+        tracks, views, ids = tracks[:, keep], views[:, keep], np.asarray(ids)[keep]
     return tracks, views, ids
 
 

@@ -60,6 +60,12 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cutoff", type=float, default=6.0, help="Butterworth cut-off, Hz")
     parser.add_argument("--max-gap", type=int, default=20, help="fill gaps up to N frames (0: off)")
     parser.add_argument(
+        "--min-track",
+        type=int,
+        default=3,
+        help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
+    )
+    parser.add_argument(
         "--up",
         default=None,
         choices=["x", "y", "z", "-x", "-y", "-z"],
@@ -97,6 +103,10 @@ def run(args: argparse.Namespace) -> int:
     from rmpl.pipeline import run as run_pipeline
 
     formats = _formats(args.formats)
+    if args.min_track < 1:
+        from rmpl.errors import InputError
+
+        raise InputError(None, "--min-track", "a number of frames >= 1", args.min_track)
     out = Path(args.out)
     up = axis_vector(args.up)
     cfg = RunConfig(
@@ -105,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
         filter=args.filter,
         cutoff=args.cutoff,
         max_gap=args.max_gap,
+        min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
     )
     inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
