@@ -56,3 +56,5 @@ if [ -n "$MHP_TRAIN" ]; then
         --set mhp="[\"$MHP_TRAIN\"]" --set mhp_weight=0.5 --set mhp_val="\"$MHP_VAL\"" \
         --set steps=2500 --set sampler.drop_rate=0.4 --set threads=2
 fi
+# The shipped recipe re-run on today's bank (docs/results.md, provenance check).
+rmpl train configs/default.toml --out "$RUNS/default_today" --set poses="\"$BANK\""
