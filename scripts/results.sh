@@ -99,3 +99,11 @@ if [ -n "$C" ]; then
     E select_shelf --dataset shelf --root "$S" --methods "triangulate,robust,rmpl$C" \
         --views 2,3,4,5
 fi
+
+# The shipped recipe re-run on today's bank (provenance check).
+if [ -e "$RUNS/default_today" ]; then
+    E today_shelf --dataset shelf --root "$S" \
+        --methods "triangulate,robust,rmpl,rmpl:$RUNS/default_today" --views 2,3,4,5
+    have data/mhp_val && E today_mhp_val --dataset synthetic --root data/mhp_val \
+        --methods "triangulate,robust,rmpl,rmpl:$RUNS/default_today" --views 2,5 --samples 1000
+fi
