@@ -604,6 +604,7 @@ class Evaluation:
     clip: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
     preds: dict[tuple[str, int, str], list[np.ndarray]] = field(default_factory=dict)
     reprojection: tuple[float, float, int] = (float("nan"), float("nan"), 0)
+    scored: str = ""  # how finished results were matched (evaluate_poses); "" = the protocol
 
 
 def _per_person_input(data: MultiViewDataset, views: tuple[int, ...], protocol: str, assoc):
@@ -814,6 +815,11 @@ def evaluate_poses(
     part = evset.parts[0]
     view_sets = {"all": [tuple(range(evset.num_views))]}
     ev, gts, present = _scored(evset, list(results), view_sets, cfg)
+    ev.scored = (
+        "finished 3D results (--poses); in every frame their people are matched to the ground "
+        f"truth by Hungarian assignment on the mean joint distance ({cfg.match_gate:g} m "
+        "gate); unmatched ground truth counts as missing"
+    )
     row = {int(f): t for t, f in enumerate(part.frames)}
     for name, poses in results.items():
         pts = poses.points
@@ -1087,7 +1093,7 @@ def header_lines(ev: Evaluation) -> list[str]:
         f"- dataset: {es.name} ({', '.join(p.name for p in es.parts)}; {frames} frames, "
         f"{es.num_views} cameras, {len(ev.gt)} annotated poses)",
         f"- {es.source}",
-        f"- association protocol: {es.protocol_text}",
+        f"- scored: {ev.scored}" if ev.scored else f"- association protocol: {es.protocol_text}",
         "- scored joints (COCO-17 names the ground truth defines): "
         + ", ".join(COCO17.joints[j] for j in ev.joints),
         f"- PCK threshold {1000 * cfg.pck_threshold:g} mm (a missing joint is wrong); "

@@ -206,7 +206,6 @@ def validation_sets(
 ) -> dict[int, object]:
     """Fixed validation batches per number of views (seeded, no keypoint removal)."""
     sampler = replace(SamplerConfig(**cfg.sampler), drop_rate=0.0)
-    sampler = replace(sampler, calib_noise_deg=0.0, calib_noise_m=0.0)
     src = PairSource(poses, sampler, cfg.noise_config(), seed=12345)
     return {v: src.batch(cfg.val_size, v, train=False) for v in views}
 

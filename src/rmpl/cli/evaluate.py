@@ -278,16 +278,7 @@ def _real_outputs(ev, args) -> dict[str, object]:
     if cfg.calib_noise is not None:
         cols.insert(2, "calib_noise")
     text = [f"# rmpl evaluate: {ev.evset.name}", "", f"`{_command(args)}`", ""]
-    head = header_lines(ev)
-    if args.poses:  # fixed results: no association of ours, only the matching
-        head = [h for h in head if not h.startswith("- association protocol")]
-        head.insert(
-            2,
-            "- scored: finished 3D results (--poses); in every frame their people are matched "
-            "to the ground truth by Hungarian assignment on the mean joint distance "
-            "(0.5 m gate); unmatched ground truth counts as missing",
-        )
-    text += head + [""]
+    text += header_lines(ev) + [""]
     text.append(markdown_table(rows, cols, pck_mm))
     if sweep:
         text += ["", "Sweep (MPJPE, mm):", ""]
