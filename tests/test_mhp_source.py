@@ -97,3 +97,20 @@ def test_shard_source_drop_and_errors(tmp_path):
     mix = MixSource([src, ShardSource(tmp_path, seed=2)], [1.0, 1.0], seed=3)
     assert mix.batch(8, 2).rays.shape == (8, 2, 17, 6)
     assert all(s.rng is mix.rng for s in mix.sources)
+
+
+def test_shard_source_mixed_view_counts(tmp_path):
+    """Directories with 5 and 3 views per mesh: a batch never picks a padded (absent) view."""
+    a, b = _fake_mhp(tmp_path / "a", views=5), _fake_mhp(tmp_path / "b", views=3, seed=1)
+    src = ShardSource([a, b], drop_rate=0.0, augment=False, seed=0)
+    assert src.num_meshes == 24 and src.num_views == 3
+    for _ in range(5):
+        batch = src.batch(64, 3)
+        # Every picked view is a real camera with its exact keypoints (padding has
+        # identity R, zero t and no scores).
+        assert np.isfinite(batch.rays).all()
+        assert (batch.scores > 0).mean() > 0.9
+        assert _ray_distance(batch).max() < 1e-4
+        assert not np.any(np.all(batch.t == 0, axis=-1))
+    with pytest.raises(ValueError, match="num_views"):
+        src.batch(4, 4)

@@ -89,11 +89,26 @@ def load_mhp(
     return d
 
 
+def _pad_views(part: dict[str, np.ndarray], key: str, width: int) -> np.ndarray:
+    """``part[key]`` with its view axis (axis 1 of the per-view arrays) padded to ``width``."""
+    a = part[key]
+    missing = width - part["scores"].shape[1]
+    if missing == 0 or key not in ("keypoints", "scores", "K", "R", "t", "size"):
+        return a
+    fill = {"keypoints": np.nan, "scores": 0.0, "size": 0, "t": 0.0}
+    if key in fill:
+        pad = np.full((a.shape[0], missing, *a.shape[2:]), fill[key], a.dtype)
+    else:  # K, R: identity matrices keep any geometry on padded views finite
+        pad = np.broadcast_to(np.eye(3, dtype=a.dtype), (a.shape[0], missing, 3, 3))
+    return np.concatenate([a, pad], axis=1)
+
+
 class ShardSource:
     """Training batches from MHP shards: each sample is one mesh seen by ``V`` of its views.
 
     Args:
-        root: MHP directory (or several, concatenated).
+        root: MHP directory (or several, concatenated; they may differ in views per mesh,
+            and a batch then draws at most the smallest number).
         subjects, exclude_subjects: mesh selection by motion subject (see :func:`load_mhp`).
         drop_rate: random keypoint removal on training batches (thesis 6.11.2).
         augment: on training batches, turn each scene about the vertical by a random angle
@@ -115,7 +130,13 @@ class ShardSource:
     ) -> None:
         roots = [root] if isinstance(root, str | Path) else list(root)
         parts = [load_mhp(r, subjects, exclude_subjects) for r in roots]
-        self.data = {k: np.concatenate([p[k] for p in parts]) for k in _ARRAYS}
+        # Directories may have different numbers of views per mesh: pad to the largest
+        # with empty views (score 0, identity camera) that sampling never picks.
+        width = max(p["scores"].shape[1] for p in parts)
+        self.views_per_mesh = np.concatenate(
+            [np.full(len(p["joints3d"]), p["scores"].shape[1]) for p in parts]
+        )
+        self.data = {k: np.concatenate([_pad_views(p, k, width) for p in parts]) for k in _ARRAYS}
         if not 0 <= drop_rate < 1:
             raise ValueError(f"drop_rate must be in [0, 1), got {drop_rate}")
         self.drop_rate = float(drop_rate)
@@ -129,7 +150,8 @@ class ShardSource:
 
     @property
     def num_views(self) -> int:
-        return self.data["scores"].shape[1]
+        """Views every mesh has: the largest number a batch can ask for."""
+        return int(self.views_per_mesh.min())
 
     def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
         """``size`` meshes, each seen by ``num_views`` of its views drawn without repeats."""
@@ -140,7 +162,9 @@ class ShardSource:
             )
         rng, d = self.rng, self.data
         idx = rng.integers(0, self.num_meshes, size)
-        views = np.argsort(rng.random((size, self.num_views)), axis=1)[:, :num_views]
+        keys = rng.random((size, self.data["scores"].shape[1]))
+        keys[np.arange(keys.shape[1]) >= self.views_per_mesh[idx][:, None]] = np.inf
+        views = np.argsort(keys, axis=1)[:, :num_views]
         take = (idx[:, None], views)
         kp = d["keypoints"][take].astype(np.float64)  # (B, V, J, 2)
         scores = d["scores"][take].astype(np.float64)
