@@ -16,6 +16,9 @@ Examples:
   rmpl evaluate --dataset synthetic --root mhp_val/ --views 2,3,5   (MHP renders, real 2D)
   rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --poses run/poses.npz \\
       other=pose2sim.trc   (score finished results: rmpl run output, a TRC)
+  rmpl evaluate --dataset recording --calib Calib.qca.txt --keypoints pose/cam01_json \\
+      pose/cam02_json pose/cam03_json pose/cam04_json --views 1,2,3
+      (no ground truth: each camera in turn is held out and predicted from k others)
 """
 
 from __future__ import annotations
@@ -32,16 +35,31 @@ from rmpl.io.atomic import atomic_path
 
 log = logging.getLogger(__name__)
 
-DATASETS = ("synthetic", "shelf", "campus", "panoptic", "h36m")
+DATASETS = ("synthetic", "shelf", "campus", "panoptic", "h36m", "recording")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dataset", required=True, choices=DATASETS)
     parser.add_argument(
         "--root",
-        required=True,
+        default=None,
         help="dataset folder (synthetic: a pose bank .npz, a motion folder, or an MHP "
-        "directory from rmpl generate)",
+        "directory from rmpl generate; not used by recording)",
+    )
+    parser.add_argument(
+        "--calib",
+        default=None,
+        help="recording: the calibration file or folder (any format rmpl reads)",
+    )
+    parser.add_argument(
+        "--skeleton", default=None, help="recording: 2D joint set when ambiguous (body25, body25b)"
+    )
+    parser.add_argument("--fps", type=float, default=None, help="recording: frame rate if none")
+    parser.add_argument(
+        "--min-score",
+        type=float,
+        default=0.5,
+        help="recording: a held-out detection is a reference when its confidence is >= this",
     )
     parser.add_argument(
         "--methods",
@@ -172,6 +190,12 @@ def run(args: argparse.Namespace) -> int:
         pck_threshold=args.pck / 1000.0,
     )
     methods = _methods(args.methods)
+    if args.dataset == "recording":
+        return _run_recording(args, methods)
+    if args.root is None:
+        raise InputError(None, "--root", f"the {args.dataset} dataset folder", "none")
+    if args.calib is not None:
+        raise InputError(None, "--calib", "only with --dataset recording", args.calib)
     if args.dataset == "synthetic":
         if args.poses:
             raise InputError(None, "--poses", "a real dataset (finished results)", "synthetic")
@@ -203,6 +227,79 @@ def run(args: argparse.Namespace) -> int:
     print(files["results.md"])
     if args.out:
         _write(Path(args.out), files, ev if not args.no_plots else None)
+    return 0
+
+
+# --------------------------------------------------------------------------- recordings
+
+
+def _run_recording(args, methods: dict) -> int:
+    """Held-out-view reprojection errors on a recording without 3D ground truth."""
+    from rmpl.cli._common import load_calibration_and_2d
+    from rmpl.evaluate import markdown_table
+    from rmpl.evaluate_heldout import heldout_rows, heldout_view_errors
+    from rmpl.pipeline import associate_frames
+
+    if args.calib is None or not args.keypoints:
+        raise InputError(None, "--calib/--keypoints", "both, for --dataset recording", "missing")
+    for option, value in (
+        ("--root", args.root),
+        ("--poses", args.poses),
+        ("--dropout", None if args.dropout == "0" else args.dropout),
+        ("--calib-noise", args.calib_noise),
+    ):
+        if value is not None:
+            raise InputError(None, option, f"no {option} with --dataset recording", value)
+    inputs = load_calibration_and_2d(args)
+    V = len(inputs.rig)
+    if V < 2:
+        raise InputError(args.calib, "cameras", "at least 2 (one is held out)", V)
+    spec = args.views or ",".join(str(k) for k in range(1, V))
+    try:
+        sizes = sorted({int(x) for x in spec.split(",") if x.strip()})
+    except ValueError:
+        raise InputError(None, "--views", f"view counts in 1..{V - 1}", spec) from None
+    if not sizes or not all(1 <= k <= V - 1 for k in sizes):
+        raise InputError(None, "--views", f"view counts in 1..{V - 1}", spec)
+    people = associate_frames(inputs.keypoints, inputs.scores, inputs.rig, progress=True)
+    people = [a for a in people if len(a)]
+    if not people:
+        raise InputError(", ".join(args.keypoints), "people", "a person seen in 2+ views", "none")
+    kp = np.concatenate([a.keypoints for a in people])
+    sc = np.concatenate([a.scores for a in people])
+    ev = heldout_view_errors(
+        kp, sc, inputs.rig, methods, sizes, min_score=args.min_score, progress=True
+    )
+    rows = heldout_rows(ev)
+    cols = [
+        "views",
+        "method",
+        "subsets",
+        "references",
+        "coverage",
+        "px_all",
+        "px_common",
+        "px_median_common",
+        "mm_common",
+        "mm_median_common",
+    ]
+    text = [
+        "# rmpl evaluate: recording (held-out views, no ground truth)",
+        "",
+        f"`{_command(args)}`",
+        "",
+        f"{len(kp)} person-frames from {len(inputs.keypoints)} frames, cameras "
+        f"{', '.join(inputs.rig.names)}. Each camera in turn is held out; each method "
+        "estimates from k of the others, and its estimate is projected into the held-out "
+        f"camera and compared with that camera's detections of confidence >= {args.min_score:g}."
+        " px: pixels in the held-out image; mm: the same error across the held-out camera's "
+        "ray at the joint's depth. _common: on the detections every method estimated.",
+        "",
+        markdown_table(rows, cols),
+    ]
+    print("\n".join(text))
+    if args.out:
+        _write(Path(args.out), {"results.md": "\n".join(text), "results.csv": rows}, None)
     return 0
 
 
