@@ -169,3 +169,39 @@ def test_trains_on_mhp_shards(poses, tmp_path):
             tmp_path / "bad",
             *poses,
         )
+
+
+def test_noise_randomization_varies_the_detector_per_training_batch(poses):
+    """noise_randomize draws a detector per training batch; validation and s=0 are unchanged."""
+    from rmpl.data.synthetic import PairSource, SamplerConfig, randomized_noise
+    from rmpl.synth.noise import NoiseConfig
+
+    base = NoiseConfig()
+    rng = np.random.default_rng(0)
+    assert randomized_noise(base, 0.0, rng) is base
+    draws = [randomized_noise(base, 1.0, rng) for _ in range(200)]
+    scale = np.array([d.joint_sigma[0] / base.joint_sigma[0] for d in draws])
+    assert 0.5 <= scale.min() < 0.6 and 1.8 < scale.max() <= 2.0
+    assert all(0 <= d.outlier_rate <= 0.5 and 0 <= d.swap_rate <= 0.5 for d in draws)
+    assert len({d.swap_rate for d in draws}) == len(draws)
+
+    def error(batch):  # median 2D error of the detected keypoints, pixels
+        from rmpl.geometry.camera import project
+
+        truth = project(
+            batch.target[:, None].astype(float),
+            batch.K[:, :, None],
+            batch.R[:, :, None],
+            batch.t[:, :, None],
+        )
+        ok = batch.scores > 0
+        return np.median(np.linalg.norm(batch.keypoints - truth, axis=-1)[ok])
+
+    plain = PairSource(poses[0], SamplerConfig(drop_rate=0.0), seed=0)
+    rand = PairSource(poses[0], SamplerConfig(drop_rate=0.0, noise_randomize=1.0), seed=0)
+    val_a, val_b = plain.batch(64, 3, train=False), rand.batch(64, 3, train=False)
+    assert np.array_equal(val_a.keypoints, val_b.keypoints, equal_nan=True)
+    errs = [error(rand.batch(128, 3)) for _ in range(8)]
+    assert max(errs) / min(errs) > 1.5  # batches see different detectors
+    with pytest.raises(ValueError, match="noise_randomize"):
+        SamplerConfig(noise_randomize=-1.0)

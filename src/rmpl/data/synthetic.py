@@ -58,6 +58,11 @@ class SamplerConfig:
         calib_noise_deg: std of extrinsic rotation noise on the rays of training batches
             (0 = off; validation batches, ``train=False``, keep the true cameras).
         calib_noise_m: std of extrinsic translation noise on the rays, metres.
+        noise_randomize: domain randomisation of the detector model on training batches.
+            With strength s > 0 each batch draws its own detector: the 2D error and the
+            confidence slope scaled by 2**U(-s, s), the outlier, swap, flip, missed-view,
+            truncation and occluded-miss rates by 2**U(-2s, 2s) (capped at 0.5). An unseen
+            detector is then one more draw rather than a new distribution. 0 = off.
     """
 
     camera_preset: str = "universal"
@@ -67,6 +72,37 @@ class SamplerConfig:
     drop_rate: float = 0.2
     calib_noise_deg: float = 0.0
     calib_noise_m: float = 0.0
+    noise_randomize: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.noise_randomize <= 3:
+            raise ValueError(f"noise_randomize must be in [0, 3], got {self.noise_randomize}")
+
+
+_RATES = (
+    "outlier_rate",
+    "swap_rate",
+    "flip_rate",
+    "miss_view_rate",
+    "truncate_rate",
+    "occluded_drop",
+)
+
+
+def randomized_noise(noise: NoiseConfig, strength: float, rng: np.random.Generator) -> NoiseConfig:
+    """One random detector around ``noise`` (see ``SamplerConfig.noise_randomize``)."""
+    import dataclasses
+
+    if strength <= 0:
+        return noise
+    scale = 2.0 ** rng.uniform(-strength, strength)
+    rates = 2.0 ** rng.uniform(-2 * strength, 2 * strength, len(_RATES))
+    return dataclasses.replace(
+        noise,
+        joint_sigma=tuple(scale * np.asarray(noise.joint_sigma)),
+        conf_slope=noise.conf_slope * 2.0 ** rng.uniform(-strength, strength),
+        **{k: min(0.5, getattr(noise, k) * f) for k, f in zip(_RATES, rates, strict=True)},
+    )
 
 
 def place_poses(poses: np.ndarray, rng: np.random.Generator, cfg: SamplerConfig) -> np.ndarray:
@@ -147,7 +183,10 @@ class PairSource:
         joints = place_poses(self.poses[idx], rng, cfg)
         center = joints[:, 11:13].mean(1)
         K, R, t, wh = sample_cameras(num_views, center, cfg.camera_preset, rng)
-        kp, scores = detect_like(joints, K, R, t, wh, rng, self.noise)
+        noise = self.noise
+        if train and cfg.noise_randomize > 0:
+            noise = randomized_noise(noise, cfg.noise_randomize, rng)
+        kp, scores = detect_like(joints, K, R, t, wh, rng, noise)
         if train and cfg.drop_rate > 0:
             drop = rng.random(scores.shape) < cfg.drop_rate
             scores = np.where(drop, 0.0, scores)
