@@ -4,15 +4,17 @@
 # at an equal, short budget (600 steps of 128 samples, one torch thread), validated on the
 # same fixed batches of held-out CMU subject 03. Resumable: re-run after a kill.
 #
-# Usage: scripts/ablations.sh POSE_BANK.npz RUNS_DIR [MHP_TRAIN MHP_VAL]
+# Usage: scripts/ablations.sh POSE_BANK.npz RUNS_DIR [MHP_TRAIN MHP_VAL [MHP_TRAIN2]]
 #   POSE_BANK: rmpl.synth.motion.save_pose_set(load_motion_dir(CMU_DIR, fps=10))
 #   MHP_TRAIN / MHP_VAL: `scripts/make_mhp_sets.sh` output (optional: skips the MHP runs)
+#   MHP_TRAIN2: the larger second MHP set (scripts/make_mhp_sets.sh's last step; optional)
 # Then: python scripts/runs_table.py RUNS_DIR/abl/* ; python scripts/runs_table.py RUNS_DIR/mhp/*
 set -euo pipefail
 BANK=$1
 RUNS=$2
 MHP_TRAIN=${3:-}
 MHP_VAL=${4:-}
+MHP_TRAIN2=${5:-}
 T() { # name, then --set overrides
     local name=$1
     shift
@@ -41,6 +43,16 @@ if [ -n "$MHP_TRAIN" ]; then
     T mhp/E_fitted --set mhp_val="\"$MHP_VAL\"" --set noise_file="\"$MHP_TRAIN/noise.toml\""
     T mhp/F_mix_fitted --set mhp_val="\"$MHP_VAL\"" --set mhp="[\"$MHP_TRAIN\"]" \
         --set mhp_weight=0.5 --set noise_file="\"$MHP_TRAIN/noise.toml\""
+fi
+if [ -n "$MHP_TRAIN2" ]; then
+    # Both MHP sets together (4x the renders, 7x the meshes), and the detector model's
+    # domain randomisation, alone and with the renders.
+    BOTH="[\"$MHP_TRAIN\",\"$MHP_TRAIN2\"]"
+    T mhp/C2_mhp --set mhp_val="\"$MHP_VAL\"" --set mhp="$BOTH"
+    T mhp/D2_mix --set mhp_val="\"$MHP_VAL\"" --set mhp="$BOTH" --set mhp_weight=0.5
+    T mhp/G_random --set mhp_val="\"$MHP_VAL\"" --set sampler.noise_randomize=1.0
+    T mhp/H2_mix_random --set mhp_val="\"$MHP_VAL\"" --set mhp="$BOTH" --set mhp_weight=0.5 \
+        --set sampler.noise_randomize=1.0
 fi
 # Presets at an equal budget of wall time (about 10 minutes each on one thread).
 rmpl train configs/default.toml --out "$RUNS/eq/small" --set poses="\"$BANK\"" \
