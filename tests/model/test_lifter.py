@@ -181,3 +181,35 @@ def test_mlp_checkpoint_round_trip(tmp_path):
     assert isinstance(loaded, MLPLifter)
     rays, scores, _ = scene(2, 3)
     assert torch.equal(model.eval()(rays, scores), loaded(rays, scores))
+
+
+def _with_outlier_ray(rays, X, b, j, shift):
+    """Rays with view 0 of (sample b, joint j) re-aimed at a point ``shift`` metres away."""
+    rays = rays.clone()
+    C = rays[b, 0, j, :3]
+    d = X[b, j] + torch.tensor(shift) - C
+    rays[b, 0, j, 3:] = d / d.norm()
+    return rays
+
+
+def test_robust_anchor_ignores_an_outlying_view():
+    rays, scores, X = scene(2, 4)
+    bad = _with_outlier_ray(rays, X, 0, 5, [0.0, 0.0, 0.5])  # vertical: far from every ray
+    plain = anchors_from_rays(bad, scores)[0]
+    robust = anchors_from_rays(bad, scores, robust=3)[0]
+    assert (plain[0, 5] - X[0, 5]).norm() > 0.05  # least squares is pulled off
+    assert (robust[0, 5] - X[0, 5]).norm() < 0.2 * (plain[0, 5] - X[0, 5]).norm()
+    # Exact rays and two-view joints are unchanged by the reweighting.
+    assert torch.allclose(anchors_from_rays(rays, scores, robust=3)[0], X, atol=1e-4)
+    r2, s2, _ = scene(2, 2)
+    assert torch.allclose(anchors_from_rays(r2, s2, robust=3)[0], anchors_from_rays(r2, s2)[0])
+
+
+def test_robust_anchor_model_starts_at_robust_triangulation():
+    rays, scores, X = scene(2, 4)
+    bad = _with_outlier_ray(rays, X, 1, 9, [0.0, 0.4, 0.2])
+    out = tiny(robust_anchor=3)(bad, scores)
+    plain = tiny()(bad, scores)
+    assert (out[1, 9] - X[1, 9]).norm() < 0.2 * (plain[1, 9] - X[1, 9]).norm()
+    with pytest.raises(ValueError, match="robust_anchor"):
+        RMPLConfig(robust_anchor=-1)

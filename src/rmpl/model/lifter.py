@@ -62,6 +62,10 @@ class RMPLConfig:
             baseline of thesis 6.4 (views padded to ``max_views``; not view-order invariant).
         max_views: the most views an ``"mlp"`` model accepts.
         skeleton: name of the joint set (see :data:`rmpl.skeleton.SKELETONS`).
+        robust_anchor: iterations of reweighting in the per-joint ray intersections
+            (:func:`anchors_from_rays`): with three or more views a ray far from the others
+            (a detector outlier) loses its weight, as in robust triangulation. 0 = the plain
+            confidence-weighted least squares of the first checkpoints.
     """
 
     num_joints: int = 17
@@ -78,8 +82,11 @@ class RMPLConfig:
     architecture: str = "transformer"
     max_views: int = 8
     skeleton: str = "coco17"
+    robust_anchor: int = 0
 
     def __post_init__(self) -> None:
+        if not 0 <= self.robust_anchor <= 10:
+            raise ValueError(f"RMPLConfig.robust_anchor must be in 0..10, got {self.robust_anchor}")
         if self.inputs not in INPUTS:
             raise ValueError(f"RMPLConfig.inputs must be one of {INPUTS}, got {self.inputs!r}")
         if self.architecture not in ARCHITECTURES:
@@ -141,8 +148,11 @@ def _solve3(A: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tenso
     return x, cond
 
 
+ROBUST_SCALE = 0.1  # metres: ray-to-point distance at which a view's weight halves
+
+
 def anchors_from_rays(
-    rays: torch.Tensor, scores: torch.Tensor, max_offset: float = 1.5
+    rays: torch.Tensor, scores: torch.Tensor, max_offset: float = 1.5, robust: int = 0
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Per-joint ray intersections and the person anchor.
 
@@ -151,6 +161,9 @@ def anchors_from_rays(
         scores: (B, V, J) confidences, 0 = missing.
         max_offset: joint intersections farther than this (metres) from the anchor are
             treated as failed.
+        robust: > 0 makes the intersections robust to one outlying view, then refines
+            them with this many iterations of Cauchy reweighting (see
+            :func:`_robust_intersections`). Joints seen in two views are unchanged.
 
     Returns:
         joint_points (B, J, 3), joint_valid (B, J) bool (>= 2 non-parallel views),
@@ -165,6 +178,8 @@ def anchors_from_rays(
     b = (w[..., None, None] * M @ o.unsqueeze(-1)).squeeze(-1).sum(1)  # (B, J, 3)
     X, cond = _solve3(A, b)
     valid = (seen.sum(1) >= 2) & (cond > 1e-4)
+    if robust > 0:
+        X = _robust_intersections(o, d, w, M, A, b, X, valid, robust)
     # Joint weight: the minimum confidence over the views that see it (thesis 6.4.3).
     wmin = torch.where(seen, w, torch.full_like(w, 2.0)).amin(1)
     wj = torch.where(valid, wmin, torch.zeros_like(wmin))
@@ -180,6 +195,36 @@ def anchors_from_rays(
     P = torch.where(total > 0, P_tri, _single_view_anchor(o, d, w))
     X = torch.where(valid[..., None], X, P[:, None].expand_as(X))
     return X, valid, P
+
+
+def _robust_intersections(o, d, w, M, A, b, X, valid, iterations: int) -> torch.Tensor:
+    """Ray intersections robust to an outlying view (only broadcasting: any V, ONNX-friendly).
+
+    Candidates are the least-squares point and, for every view, the point without it. The
+    candidate with the lowest Cauchy cost ``sum_v w_v log(1 + (r_v / ROBUST_SCALE)^2)`` (``r_v``
+    the distance to ray ``v``) starts ``iterations`` rounds of reweighted least squares
+    (weight ``w_v / (1 + (r_v / ROBUST_SCALE)^2)``). Shapes as in :func:`anchors_from_rays`.
+    """
+    seen = w > 0
+    wM = w[..., None, None] * M  # (B, V, J, 3, 3)
+    X_loo, cond_loo = _solve3(A[:, None] - wM, b[:, None] - (wM @ o.unsqueeze(-1)).squeeze(-1))
+    ok_loo = seen & (seen.sum(1, keepdim=True) >= 3) & (cond_loo > 1e-4)
+    cands = torch.cat([X[:, None], X_loo], 1)  # (B, V + 1, J, 3)
+    rel = cands[:, :, None] - o[:, None]  # (B, V + 1, V, J, 3)
+    perp = rel - (rel * d[:, None]).sum(-1, keepdim=True) * d[:, None]
+    cost = (w[:, None] * torch.log(1 + (perp**2).sum(-1) / ROBUST_SCALE**2)).sum(2)
+    ok = torch.cat([valid[:, None], ok_loo], 1)
+    cost = torch.where(ok, cost, torch.full_like(cost, float("inf")))
+    best = cost.argmin(1)  # (B, J)
+    X = cands.gather(1, best[:, None, :, None].expand(-1, 1, -1, 3))[:, 0]
+    for _ in range(iterations):
+        rel = X[:, None] - o  # (B, V, J, 3)
+        perp = rel - (rel * d).sum(-1, keepdim=True) * d
+        wr = w / (1 + (perp**2).sum(-1) / ROBUST_SCALE**2)
+        wrM = wr[..., None, None] * M
+        Xr, cond_r = _solve3(wrM.sum(1), (wrM @ o.unsqueeze(-1)).squeeze(-1).sum(1))
+        X = torch.where((valid & (cond_r > 1e-4))[..., None], Xr, X)
+    return X
 
 
 def camera_features(K: torch.Tensor, R: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
@@ -291,7 +336,7 @@ class RMPL(nn.Module):
         o, d = rays[..., :3], rays[..., 3:]
 
         if c.recenter or c.geometric:
-            base, valid, P = anchors_from_rays(rays, scores)
+            base, valid, P = anchors_from_rays(rays, scores, robust=c.robust_anchor)
         if not c.recenter:
             P = torch.zeros(B, 3, dtype=rays.dtype, device=rays.device)
         feats = [(o - P[:, None, None]) / ORIGIN_SCALE, d]
