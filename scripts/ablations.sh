@@ -53,6 +53,10 @@ if [ -n "$MHP_TRAIN2" ]; then
     T mhp/G_random --set mhp_val="\"$MHP_VAL\"" --set sampler.noise_randomize=1.0
     T mhp/H2_mix_random --set mhp_val="\"$MHP_VAL\"" --set mhp="$BOTH" --set mhp_weight=0.5 \
         --set sampler.noise_randomize=1.0
+    # Ray intersections robust to an outlying view, alone and with the renders.
+    T mhp/K_robust --set mhp_val="\"$MHP_VAL\"" --set model.robust_anchor=3
+    T mhp/L2_mix_robust --set mhp_val="\"$MHP_VAL\"" --set mhp="$BOTH" --set mhp_weight=0.5 \
+        --set model.robust_anchor=3
 fi
 # Presets at an equal budget of wall time (about 10 minutes each on one thread).
 rmpl train configs/default.toml --out "$RUNS/eq/small" --set poses="\"$BANK\"" \

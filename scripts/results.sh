@@ -83,6 +83,25 @@ if [ -n "$MHP" ]; then
     done
 fi
 
+# The larger MHP set, detector-model randomisation and robust ray intersections (600-step
+# runs of scripts/ablations.sh), on Shelf, the held-out renders and two recordings scored by
+# held-out views (no ground truth needed).
+S4=""
+for r in B_parametric D_mix C2_mhp D2_mix G_random H2_mix_random K_robust L2_mix_robust; do
+    [ -e "$RUNS/mhp/$r" ] && S4="$S4,rmpl:$RUNS/mhp/$r"
+done
+if [ -n "$S4" ]; then
+    E shelf_mhp2 --dataset shelf --root "$S" --methods "triangulate,robust$S4" --views 2,3,4,5
+    have data/mhp_val && E mhp_val2 --dataset synthetic --root data/mhp_val \
+        --methods "triangulate,robust,rmpl$S4" --views 2,3,4,5 --samples 1000
+    P2S=$D/pose2sim_demo/Pose2Sim/S01_Demo_SingleTrial
+    have "$P2S" && E rec_pose2sim --dataset recording --calib "$P2S/calibration/Calib.qca.txt" \
+        --keypoints "$P2S"/pose/cam01_json "$P2S"/pose/cam02_json "$P2S"/pose/cam03_json \
+        "$P2S"/pose/cam04_json --methods "triangulate,robust,rmpl$S4" --views 1,2,3
+    E rec_shelf --dataset recording --calib "$S/calibration.json" --keypoints "$S" \
+        --methods "triangulate,robust,rmpl$S4" --views 2,3,4
+fi
+
 # The presets at an equal budget of training time.
 have "$RUNS/eq/small" "$RUNS/eq/paper" && E shelf_presets --dataset shelf --root "$S" \
     --methods "triangulate,rmpl:$RUNS/eq/small,rmpl:$RUNS/eq/paper" --views 1,2,3,4,5

@@ -2,6 +2,8 @@
 
 Usage: python scripts/results_tables.py [RESULTS_DIR [OCCLUSION_PLOT.png]]
 (default: results; with a second argument it also draws MPJPE vs occlusion on the renders)
+   or: python scripts/results_tables.py RESULTS_DIR --by-run NAME...
+(common-joint MPJPE, or for rec_* held-out-view pixels, per method and view count)
 
 Each block is headed by the results folder it reads; a folder that is missing is skipped.
 """
@@ -166,7 +168,30 @@ def simple(name: str) -> None:
         )
 
 
+def by_run(name: str, column: str = "mpjpe_common") -> None:
+    """One row per method, one column per view count: the candidate comparisons."""
+    r = rows(name)
+    if r is None:
+        return
+    views = list(dict.fromkeys(x["views"] for x in r))
+    methods = list(dict.fromkeys(x["method"] for x in r))
+    value = {
+        (x["views"], x["method"]): x[column]
+        for x in r
+        if x.get("dropout", "0") in ("0", "0.0000", "")
+    }
+    print(f"\n### {name} ({column})\n")
+    print("| method | " + " | ".join(views) + " |")
+    print("|---|" + "---:|" * len(views))
+    for m in methods:
+        print(f"| {m} | " + " | ".join(num(value.get((v, m))) for v in views) + " |")
+
+
 if __name__ == "__main__":
+    if len(sys.argv) > 2 and sys.argv[2] == "--by-run":
+        for name in sys.argv[3:]:
+            by_run(name, "px_common" if name.startswith("rec_") else "mpjpe_common")
+        sys.exit()
     shelf_views()
     simple("shelf_e2e/eval")
     sweep("shelf_dropout", "dropout")
