@@ -73,6 +73,16 @@ def test_low_confidence_references_are_skipped_and_bad_sizes_refused():
         heldout_view_errors(kp, sc, rig, {"tri": _tri}, [3])
     with pytest.raises(ValueError, match="views of 2D"):
         heldout_view_errors(kp, sc, rig[[0, 1]], {"tri": _tri}, [1])
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="min_score"):
+            heldout_view_errors(kp, sc, rig, {"tri": _tri}, [2], min_score=bad)
+    # A missing held-out detection (score 0) is never a reference.
+    sc[:, 2, 5:8] = 0.0
+    kp[:, 2, 5:8] = np.nan
+    ev = heldout_view_errors(kp, sc, rig, {"tri": _tri}, [2], min_score=0.1)
+    assert len(ev.px[2]["tri"]) == 2 * (17 + 17 + 14)
+    # Held out 0 or 1, those joints are seen by one input view only: no triangulation.
+    assert np.isnan(ev.px[2]["tri"]).sum() == 2 * 2 * 3
 
 
 def test_cli_recording(tmp_path, capsys):
@@ -102,3 +112,8 @@ def test_cli_recording(tmp_path, capsys):
     assert "--root" in capsys.readouterr().err and not (tmp_path / "no").exists()
     assert main(args[:-2] + ["--views", "3"]) == 2
     assert "--views" in capsys.readouterr().err
+    assert main(args[:-2] + ["--min-score", "0"]) == 2
+    assert "--min-score" in capsys.readouterr().err
+    assert main(args[:-2] + ["--cameras", "a,b"]) == 2
+    assert "--cameras" in capsys.readouterr().err
+    assert main(args[:-2] + ["--dropout", "0.0", "--out", str(tmp_path / "r2")]) == 0

@@ -100,17 +100,24 @@ def test_shard_source_drop_and_errors(tmp_path):
 
 
 def test_shard_source_mixed_view_counts(tmp_path):
-    """Directories with 5 and 3 views per mesh: a batch never picks a padded (absent) view."""
+    """Directories with 5 and 3 views per mesh: a batch never picks a padded (absent) view,
+    and asks for more views than the smaller directory has only from the larger one."""
     a, b = _fake_mhp(tmp_path / "a", views=5), _fake_mhp(tmp_path / "b", views=3, seed=1)
     src = ShardSource([a, b], drop_rate=0.0, augment=False, seed=0)
-    assert src.num_meshes == 24 and src.num_views == 3
-    for _ in range(5):
-        batch = src.batch(64, 3)
-        # Every picked view is a real camera with its exact keypoints (padding has
-        # identity R, zero t and no scores).
-        assert np.isfinite(batch.rays).all()
-        assert (batch.scores > 0).mean() > 0.9
-        assert _ray_distance(batch).max() < 1e-4
-        assert not np.any(np.all(batch.t == 0, axis=-1))
+    assert src.num_meshes == 24 and src.num_views == 5
+    for V in (3, 4, 5):
+        for _ in range(3):
+            batch = src.batch(64, V)
+            # Every picked view is a real camera with its exact keypoints (padding has
+            # identity R, zero t and no scores).
+            assert np.isfinite(batch.rays).all()
+            assert (batch.scores > 0).mean() > 0.9
+            assert _ray_distance(batch).max() < 1e-4
+            assert not np.any(np.all(batch.t == 0, axis=-1))
+    # 3 views draw from both directories, 4 only from the 5-view one.
+    three = {tuple(x) for x in src.batch(256, 3).target[:, 0].round(5)}
+    four = {tuple(x) for x in src.batch(256, 4).target[:, 0].round(5)}
+    small = {tuple(x) for x in src.data["joints3d"][12:, 0].round(5)}
+    assert three & small and not four & small
     with pytest.raises(ValueError, match="num_views"):
-        src.batch(4, 4)
+        src.batch(4, 6)

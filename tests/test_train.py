@@ -157,6 +157,7 @@ def test_trains_on_mhp_shards(poses, tmp_path):
         mhp=[str(shards)],
         mhp_weight=0.5,
         mhp_val=str(shards),
+        max_views=4,
     )
     rec = read_log(train(cfg, tmp_path / "run", *poses))[-1]
     assert np.isfinite([rec[f"mhp_kpstar_{v}v"] for v in (1, 2, 3, 4)]).all()
@@ -205,3 +206,17 @@ def test_noise_randomization_varies_the_detector_per_training_batch(poses):
     assert max(errs) / min(errs) > 1.5  # batches see different detectors
     with pytest.raises(ValueError, match="noise_randomize"):
         SamplerConfig(noise_randomize=-1.0)
+
+
+def test_mhp_with_too_few_views_is_refused_at_start(poses, tmp_path):
+    """max_views above the MHP directories' views per mesh fails before training, clearly."""
+    from rmpl.errors import InputError
+    from rmpl.train import _training_source
+    from tests.test_mhp_source import _fake_mhp
+
+    _fake_mhp(tmp_path / "mhp", views=3)
+    cfg = TrainConfig.from_dict({"mhp": [str(tmp_path / "mhp")], "mhp_weight": 0.5, "max_views": 5})
+    with pytest.raises(InputError, match="views per mesh"):
+        _training_source(cfg, poses[0])
+    ok = TrainConfig.from_dict({"mhp": [str(tmp_path / "mhp")], "mhp_weight": 0.5, "max_views": 3})
+    assert _training_source(ok, poses[0]).batch(4, 3).rays.shape == (4, 3, 17, 6)

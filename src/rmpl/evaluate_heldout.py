@@ -62,7 +62,7 @@ def heldout_view_errors(
         sizes: numbers of input views k, each in 1..V-1; every k-subset of the other views
             is used for each held-out view.
         min_score: a held-out detection counts as the reference when its confidence is at
-            least this.
+            least this, in (0, 1].
         progress: show a progress bar over (held-out view, subset) pairs.
 
     Returns:
@@ -85,7 +85,9 @@ def heldout_view_errors(
     bad = [k for k in sizes if not 1 <= k <= V - 1]
     if bad:
         raise ValueError(f"view counts must be in 1..{V - 1} (one view is held out), got {bad}")
-    sc = np.where(np.isfinite(kp).all(-1), sc, 0.0)
+    if not 0 < min_score <= 1:
+        raise ValueError(f"min_score must be in (0, 1], got {min_score}")
+    sc = np.where(np.isfinite(kp).all(-1) & np.isfinite(sc), sc, 0.0)
     jobs = [
         (h, k, list(S))
         for k in sizes
@@ -97,7 +99,7 @@ def heldout_view_errors(
     acc_mm: dict[int, dict[str, list]] = {k: {m: [] for m in methods} for k in sizes}
     for h, k, S in tqdm(jobs, desc="held-out views", unit="subset", disable=not progress):
         ev.subsets[k] = ev.subsets.get(k, 0) + 1
-        ref = sc[:, h] >= min_score  # (N, J)
+        ref = (sc[:, h] > 0) & (sc[:, h] >= min_score)  # (N, J)
         keep = ref.any(-1) & (sc[:, S] > 0).any((-1, -2))
         if not keep.any():
             continue
@@ -105,9 +107,10 @@ def heldout_view_errors(
         target, ref = kp[keep, h], ref[keep]
         cam = rig[h]
         preds = {m: np.asarray(fn(sub_kp, sub_sc, sub_rig), float) for m, fn in methods.items()}
+        n = int(keep.sum())
         for m, X in preds.items():
-            if X.shape != (int(keep.sum()), J, 3):
-                raise ValueError(f"method {m} returned {X.shape}, expected {(keep.sum(), J, 3)}")
+            if X.shape != (n, J, 3):
+                raise ValueError(f"method {m} returned {X.shape}, expected {(n, J, 3)}")
             ok = np.isfinite(X).all(-1)
             Xs = np.where(ok[..., None], X, 0.0)
             uv = cam.project(Xs)

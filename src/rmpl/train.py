@@ -221,7 +221,14 @@ def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
     shards = ShardSource(
         list(cfg.mhp), exclude_subjects=cfg.holdout, drop_rate=sampler.drop_rate, seed=cfg.seed
     )
-    log.info("MHP: %d meshes x %d views", shards.num_meshes, shards.num_views)
+    log.info("MHP: %d meshes x up to %d views", shards.num_meshes, shards.num_views)
+    if shards.num_views < cfg.max_views:
+        raise InputError(
+            ", ".join(cfg.mhp),
+            "views per mesh",
+            f"at least max_views = {cfg.max_views} (or lower max_views)",
+            shards.num_views,
+        )
     if cfg.mhp_weight >= 1:
         return shards
     return MixSource([shards, pairs], [cfg.mhp_weight, 1 - cfg.mhp_weight], seed=cfg.seed)

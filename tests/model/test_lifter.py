@@ -213,3 +213,6 @@ def test_robust_anchor_model_starts_at_robust_triangulation():
     assert (out[1, 9] - X[1, 9]).norm() < 0.2 * (plain[1, 9] - X[1, 9]).norm()
     with pytest.raises(ValueError, match="robust_anchor"):
         RMPLConfig(robust_anchor=-1)
+    for bad in (1.5, True):
+        with pytest.raises(ValueError, match="robust_anchor"):
+            RMPLConfig(robust_anchor=bad)

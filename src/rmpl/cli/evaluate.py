@@ -245,11 +245,16 @@ def _run_recording(args, methods: dict) -> int:
     for option, value in (
         ("--root", args.root),
         ("--poses", args.poses),
-        ("--dropout", None if args.dropout == "0" else args.dropout),
+        ("--dropout", None if _floats(args.dropout, "--dropout") == [0.0] else args.dropout),
         ("--calib-noise", args.calib_noise),
+        ("--cameras", args.cameras),
+        ("--subject", args.subject),
+        ("--sequence", args.sequence),
     ):
         if value is not None:
             raise InputError(None, option, f"no {option} with --dataset recording", value)
+    if not (np.isfinite(args.min_score) and 0 < args.min_score <= 1):
+        raise InputError(None, "--min-score", "a confidence in (0, 1]", args.min_score)
     inputs = load_calibration_and_2d(args)
     V = len(inputs.rig)
     if V < 2:
@@ -293,7 +298,9 @@ def _run_recording(args, methods: dict) -> int:
         "estimates from k of the others, and its estimate is projected into the held-out "
         f"camera and compared with that camera's detections of confidence >= {args.min_score:g}."
         " px: pixels in the held-out image; mm: the same error across the held-out camera's "
-        "ray at the joint's depth. _common: on the detections every method estimated.",
+        "ray at the joint's depth. _common: on the detections every method estimated. People "
+        "are associated across all cameras, the held-out one included (to know which of its "
+        "detections to compare), so the association step has seen it.",
         "",
         markdown_table(rows, cols),
     ]

@@ -107,8 +107,8 @@ class ShardSource:
     """Training batches from MHP shards: each sample is one mesh seen by ``V`` of its views.
 
     Args:
-        root: MHP directory (or several, concatenated; they may differ in views per mesh,
-            and a batch then draws at most the smallest number).
+        root: MHP directory (or several, concatenated; they may differ in views per mesh:
+            a batch of V views draws from the meshes that have at least V).
         subjects, exclude_subjects: mesh selection by motion subject (see :func:`load_mhp`).
         drop_rate: random keypoint removal on training batches (thesis 6.11.2).
         augment: on training batches, turn each scene about the vertical by a random angle
@@ -150,8 +150,8 @@ class ShardSource:
 
     @property
     def num_views(self) -> int:
-        """Views every mesh has: the largest number a batch can ask for."""
-        return int(self.views_per_mesh.min())
+        """The largest number of views a batch can ask for (the most any mesh has)."""
+        return int(self.views_per_mesh.max())
 
     def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
         """``size`` meshes, each seen by ``num_views`` of its views drawn without repeats."""
@@ -161,7 +161,9 @@ class ShardSource:
                 f"got {num_views}"
             )
         rng, d = self.rng, self.data
-        idx = rng.integers(0, self.num_meshes, size)
+        # Only meshes with at least num_views views (all of them when the directories agree).
+        eligible = np.flatnonzero(self.views_per_mesh >= num_views)
+        idx = eligible[rng.integers(0, len(eligible), size)]
         keys = rng.random((size, self.data["scores"].shape[1]))
         keys[np.arange(keys.shape[1]) >= self.views_per_mesh[idx][:, None]] = np.inf
         views = np.argsort(keys, axis=1)[:, :num_views]

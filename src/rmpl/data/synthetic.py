@@ -61,7 +61,8 @@ class SamplerConfig:
         noise_randomize: domain randomisation of the detector model on training batches.
             With strength s > 0 each batch draws its own detector: the 2D error and the
             confidence slope scaled by 2**U(-s, s), the outlier, swap, flip, missed-view,
-            truncation and occluded-miss rates by 2**U(-2s, 2s) (capped at 0.5). An unseen
+            truncation and occluded-miss rates by 2**U(-2s, 2s) (capped at 0.5, or at the
+            base rate when that is higher). An unseen
             detector is then one more draw rather than a new distribution. 0 = off.
     """
 
@@ -101,7 +102,10 @@ def randomized_noise(noise: NoiseConfig, strength: float, rng: np.random.Generat
         noise,
         joint_sigma=tuple(scale * np.asarray(noise.joint_sigma)),
         conf_slope=noise.conf_slope * 2.0 ** rng.uniform(-strength, strength),
-        **{k: min(0.5, getattr(noise, k) * f) for k, f in zip(_RATES, rates, strict=True)},
+        **{
+            k: min(max(0.5, getattr(noise, k)), getattr(noise, k) * f)
+            for k, f in zip(_RATES, rates, strict=True)
+        },
     )
 
 

@@ -85,7 +85,11 @@ class RMPLConfig:
     robust_anchor: int = 0
 
     def __post_init__(self) -> None:
-        if not 0 <= self.robust_anchor <= 10:
+        if (
+            not isinstance(self.robust_anchor, int)
+            or isinstance(self.robust_anchor, bool)
+            or not 0 <= self.robust_anchor <= 10
+        ):
             raise ValueError(f"RMPLConfig.robust_anchor must be in 0..10, got {self.robust_anchor}")
         if self.inputs not in INPUTS:
             raise ValueError(f"RMPLConfig.inputs must be one of {INPUTS}, got {self.inputs!r}")
@@ -163,7 +167,9 @@ def anchors_from_rays(
             treated as failed.
         robust: > 0 makes the intersections robust to one outlying view, then refines
             them with this many iterations of Cauchy reweighting (see
-            :func:`_robust_intersections`). Joints seen in two views are unchanged.
+            :func:`_robust_intersections`). With two views there is no outlier to find:
+            rays that meet are unchanged, rays that miss each other move the point by a
+            fraction of their miss distance.
 
     Returns:
         joint_points (B, J, 3), joint_valid (B, J) bool (>= 2 non-parallel views),
