@@ -77,8 +77,11 @@ def main(argv=None) -> int:
             points=poses[:, None].astype(np.float32),
             fps=args.fps,
             source=f"CMU mocap {args.clip} (subject 03, held out of training), "
-            + ("anny mesh joints, MediaPipe on renders" if args.detector == "mediapipe"
-               else "mocap joints, parametric detector noise"),
+            + (
+                "anny mesh joints, MediaPipe on renders"
+                if args.detector == "mediapipe"
+                else "mocap joints, parametric detector noise"
+            ),
         )
     print(f"wrote {args.out}: {T} frames, 4 views, {100 * (sc == 0).mean():.0f}% keypoints missing")
     return 0

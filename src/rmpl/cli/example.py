@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     gt = np.load(EXAMPLE / "ground_truth.npz")["points"][:, 0]  # (T, J, 3)
     out = Path(args.out)
     results = {}
-    for method in ("rmpl", "robust"):
+    for method in ("rmpl", "robust", "triangulate"):
         cfg = RunConfig(method=method, model=args.model)
         poses = run_pipeline(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
@@ -55,11 +55,18 @@ def run(args: argparse.Namespace) -> int:
         if method == "rmpl":
             write_all(poses, inputs, out, list(FORMATS))
     sc = inputs.scores
+    seen = sc[:, :, 0] > 0
+    err2d = np.linalg.norm(inputs.keypoints[:, :, 0] - inputs.rig.project(gt), axis=-1)[seen]
     print(
         f"example: {len(sc)} frames, {len(inputs.rig)} views, "
-        f"{100 * (sc == 0).mean():.0f}% of 2D keypoints missing"
+        f"{100 * (sc == 0).mean():.0f}% of 2D keypoints missing; the 2D lies a median of "
+        f"{np.median(err2d):.1f} px (mean {err2d.mean():.1f}) from the projected ground truth"
     )
-    for method, label in (("rmpl", "RMPL"), ("robust", "robust triangulation")):
+    for method, label in (
+        ("rmpl", "RMPL"),
+        ("robust", "robust triangulation"),
+        ("triangulate", "triangulation (DLT)"),
+    ):
         p = results[method]
         cov = 100 * np.isfinite(p).all(-1).mean()
         print(
