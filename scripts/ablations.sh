@@ -82,4 +82,8 @@ rmpl train configs/default.toml --out "$RUNS/default_today" --set poses="\"$BANK
 if [ -n "$MHP_TRAIN2" ]; then
     rmpl train configs/default.toml --out "$RUNS/default_v2" --set poses="\"$BANK\"" \
         --set "mhp=[\"$MHP_TRAIN\",\"$MHP_TRAIN2\"]" --set mhp_val="\"$MHP_VAL\""
+    # The same with keypoint removal 0.4 (a candidate, not shipped).
+    rmpl train configs/default.toml --out "$RUNS/default_v2_drop04" --set poses="\"$BANK\"" \
+        --set "mhp=[\"$MHP_TRAIN\",\"$MHP_TRAIN2\"]" --set mhp_val="\"$MHP_VAL\"" \
+        --set sampler.drop_rate=0.4
 fi

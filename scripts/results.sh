@@ -119,6 +119,17 @@ if [ -n "$C" ]; then
         --views 2,3,4,5
 fi
 
+# The shipped recipe with keypoint removal 0.4 (a candidate): under dropout on Shelf, and on
+# the held-out renders.
+if [ -e "$RUNS/default_v2_drop04" ]; then
+    E v2_drop04_dropout --dataset shelf --root "$S" \
+        --methods "triangulate,robust,rmpl,rmpl:$RUNS/default_v2_drop04" --views all,pairs \
+        --dropout 0,0.2,0.4,0.6
+    have data/mhp_val && E v2_drop04_mhp_val --dataset synthetic --root data/mhp_val \
+        --methods "triangulate,robust,rmpl,rmpl:$RUNS/default_v2_drop04" --views 2,3,4,5 \
+        --samples 1000
+fi
+
 # The shipped recipe re-run on today's bank (provenance check).
 if [ -e "$RUNS/default_today" ]; then
     E today_shelf --dataset shelf --root "$S" \
