@@ -31,8 +31,13 @@ __all__ = ["Lifter", "LiftResult", "estimate_up", "rotation_to_z", "PRETRAINED"]
 log = logging.getLogger(__name__)
 
 _WEIGHTS = Path(__file__).parent / "weights"
-#: Models shipped inside the package, by name.
-PRETRAINED: dict[str, Path] = {"default": _WEIGHTS / "default"}
+#: Models shipped inside the package, by name. ``default``: the best on the joints the
+#: detector sees; ``occlusion``: the same recipe with more keypoint removal in training
+#: (p=0.4), better when many keypoints are missing (docs/results.md).
+PRETRAINED: dict[str, Path] = {
+    "default": _WEIGHTS / "default",
+    "occlusion": _WEIGHTS / "occlusion",
+}
 
 
 @dataclass

@@ -23,7 +23,9 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "walk"
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/example", help="output folder")
     parser.add_argument(
-        "--model", default="default", help="shipped model name or checkpoint folder"
+        "--model",
+        default="default",
+        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
     )
     parser.set_defaults(run=run)
 

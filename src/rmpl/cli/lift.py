@@ -18,7 +18,9 @@ from rmpl.cli._common import add_io_arguments, run_single_method
 def register(parser: argparse.ArgumentParser) -> None:
     add_io_arguments(parser)
     parser.add_argument(
-        "--model", default="default", help="shipped model name or checkpoint folder"
+        "--model",
+        default="default",
+        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
     )
     parser.add_argument(
         "--up",

@@ -48,7 +48,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--method", default="rmpl", choices=["rmpl", "triangulate", "robust"])
     parser.add_argument(
-        "--model", default="default", help="shipped model name or checkpoint folder"
+        "--model",
+        default="default",
+        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
     )
     parser.add_argument(
         "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"
