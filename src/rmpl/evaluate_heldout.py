@@ -106,6 +106,7 @@ def heldout_view_errors(
         sub_kp, sub_sc, sub_rig = kp[keep][:, S], sc[keep][:, S], rig[S]
         target, ref = kp[keep, h], ref[keep]
         cam = rig[h]
+        focal = 0.5 * (cam.K[0, 0] + cam.K[1, 1])
         preds = {m: np.asarray(fn(sub_kp, sub_sc, sub_rig), float) for m, fn in methods.items()}
         n = int(keep.sum())
         for m, X in preds.items():
@@ -117,7 +118,6 @@ def heldout_view_errors(
             depth = Xs @ cam.R[2] + cam.t[2]
             ok &= depth > 0
             err = np.linalg.norm(uv - target, axis=-1)
-            focal = 0.5 * (cam.K[0, 0] + cam.K[1, 1])
             err_mm = 1000.0 * err * depth / focal
             acc_px[k][m].append(np.where(ok, err, np.nan)[ref])
             acc_mm[k][m].append(np.where(ok, err_mm, np.nan)[ref])

@@ -241,3 +241,11 @@ def test_shipped_models_load_and_lift(name):
     out = lifter.lift(rig.project(X), np.full((8, 3, 17), 0.9), rig).points
     assert np.isfinite(out).all()
     assert np.linalg.norm(out - X, axis=-1).mean() < 0.1
+
+
+def test_model_help_names_every_shipped_model():
+    """The --model help (kept in the CLI without importing torch) lists every shipped model."""
+    from rmpl.cli._common import MODEL_HELP
+    from rmpl.inference import PRETRAINED
+
+    assert all(name in MODEL_HELP for name in PRETRAINED)

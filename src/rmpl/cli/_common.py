@@ -12,6 +12,10 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 
+#: ``--model`` help of the commands that lift (the names of rmpl.inference.PRETRAINED, kept
+#: here so that building the parser does not import torch).
+MODEL_HELP = "shipped model (default, occlusion: for many missing keypoints) or checkpoint folder"
+
 log = logging.getLogger(__name__)
 
 OUTPUT_SUFFIXES = (".npz", ".json", ".trc", ".c3d")

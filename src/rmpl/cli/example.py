@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.cli._common import MODEL_HELP
+
 log = logging.getLogger(__name__)
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "walk"
@@ -25,7 +27,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default="default",
-        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
+        help=MODEL_HELP,
     )
     parser.set_defaults(run=run)
 

@@ -12,7 +12,7 @@ import argparse
 
 import numpy as np
 
-from rmpl.cli._common import add_io_arguments, run_single_method
+from rmpl.cli._common import MODEL_HELP, add_io_arguments, run_single_method
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -20,7 +20,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default="default",
-        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
+        help=MODEL_HELP,
     )
     parser.add_argument(
         "--up",

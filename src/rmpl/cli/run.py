@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.cli._common import MODEL_HELP
+
 log = logging.getLogger(__name__)
 
 FORMATS = ("npz", "json", "trc", "c3d", "bvh")
@@ -50,7 +52,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default="default",
-        help="shipped model (default, occlusion: for many missing keypoints) or checkpoint folder",
+        help=MODEL_HELP,
     )
     parser.add_argument(
         "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"

@@ -12,7 +12,7 @@ Shape glossary: ``B`` batch, ``V`` views, ``J`` joints.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -92,13 +92,11 @@ _RATES = (
 
 def randomized_noise(noise: NoiseConfig, strength: float, rng: np.random.Generator) -> NoiseConfig:
     """One random detector around ``noise`` (see ``SamplerConfig.noise_randomize``)."""
-    import dataclasses
-
     if strength <= 0:
         return noise
     scale = 2.0 ** rng.uniform(-strength, strength)
     rates = 2.0 ** rng.uniform(-2 * strength, 2 * strength, len(_RATES))
-    return dataclasses.replace(
+    return replace(
         noise,
         joint_sigma=tuple(scale * np.asarray(noise.joint_sigma)),
         conf_slope=noise.conf_slope * 2.0 ** rng.uniform(-strength, strength),

@@ -155,6 +155,20 @@ def _solve3(A: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tenso
 ROBUST_SCALE = 0.1  # metres: ray-to-point distance at which a view's weight halves
 
 
+def _perpendicular(rel: torch.Tensor, d: torch.Tensor) -> torch.Tensor:
+    """The part of ``rel`` (a point minus a ray origin) across the unit ray direction ``d``."""
+    return rel - (rel * d).sum(-1, keepdim=True) * d
+
+
+def _ray_terms(
+    w: torch.Tensor, M: torch.Tensor, o: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-view terms of the weighted least-squares ray intersection ``A x = b``:
+    ``w M`` (B, V, J, 3, 3) and ``w M o`` (B, V, J, 3); A and b are their sums over views."""
+    wM = w[..., None, None] * M
+    return wM, (wM @ o.unsqueeze(-1)).squeeze(-1)
+
+
 def anchors_from_rays(
     rays: torch.Tensor, scores: torch.Tensor, max_offset: float = 1.5, robust: int = 0
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -180,12 +194,12 @@ def anchors_from_rays(
     seen = w > 0
     eye = torch.eye(3, dtype=rays.dtype, device=rays.device)
     M = eye - d.unsqueeze(-1) * d.unsqueeze(-2)  # (B, V, J, 3, 3)
-    A = (w[..., None, None] * M).sum(1)  # (B, J, 3, 3)
-    b = (w[..., None, None] * M @ o.unsqueeze(-1)).squeeze(-1).sum(1)  # (B, J, 3)
+    wM, wMo = _ray_terms(w, M, o)
+    A, b = wM.sum(1), wMo.sum(1)  # (B, J, 3, 3), (B, J, 3)
     X, cond = _solve3(A, b)
     valid = (seen.sum(1) >= 2) & (cond > 1e-4)
     if robust > 0:
-        X = _robust_intersections(o, d, w, M, A, b, X, valid, robust)
+        X = _robust_intersections(o, d, w, M, wM, wMo, X, valid, robust)
     # Joint weight: the minimum confidence over the views that see it (thesis 6.4.3).
     wmin = torch.where(seen, w, torch.full_like(w, 2.0)).amin(1)
     wj = torch.where(valid, wmin, torch.zeros_like(wmin))
@@ -203,32 +217,30 @@ def anchors_from_rays(
     return X, valid, P
 
 
-def _robust_intersections(o, d, w, M, A, b, X, valid, iterations: int) -> torch.Tensor:
+def _robust_intersections(o, d, w, M, wM, wMo, X, valid, iterations: int) -> torch.Tensor:
     """Ray intersections robust to an outlying view (only broadcasting: any V, ONNX-friendly).
 
     Candidates are the least-squares point and, for every view, the point without it. The
     candidate with the lowest Cauchy cost ``sum_v w_v log(1 + (r_v / ROBUST_SCALE)^2)`` (``r_v``
     the distance to ray ``v``) starts ``iterations`` rounds of reweighted least squares
-    (weight ``w_v / (1 + (r_v / ROBUST_SCALE)^2)``). Shapes as in :func:`anchors_from_rays`.
+    (weight ``w_v / (1 + (r_v / ROBUST_SCALE)^2)``). ``wM``, ``wMo``: :func:`_ray_terms` of
+    the confidences ``w``. Shapes as in :func:`anchors_from_rays`.
     """
     seen = w > 0
-    wM = w[..., None, None] * M  # (B, V, J, 3, 3)
-    X_loo, cond_loo = _solve3(A[:, None] - wM, b[:, None] - (wM @ o.unsqueeze(-1)).squeeze(-1))
+    X_loo, cond_loo = _solve3(wM.sum(1)[:, None] - wM, wMo.sum(1)[:, None] - wMo)
     ok_loo = seen & (seen.sum(1, keepdim=True) >= 3) & (cond_loo > 1e-4)
     cands = torch.cat([X[:, None], X_loo], 1)  # (B, V + 1, J, 3)
-    rel = cands[:, :, None] - o[:, None]  # (B, V + 1, V, J, 3)
-    perp = rel - (rel * d[:, None]).sum(-1, keepdim=True) * d[:, None]
+    perp = _perpendicular(cands[:, :, None] - o[:, None], d[:, None])  # (B, V + 1, V, J, 3)
     cost = (w[:, None] * torch.log(1 + (perp**2).sum(-1) / ROBUST_SCALE**2)).sum(2)
     ok = torch.cat([valid[:, None], ok_loo], 1)
     cost = torch.where(ok, cost, torch.full_like(cost, float("inf")))
     best = cost.argmin(1)  # (B, J)
     X = cands.gather(1, best[:, None, :, None].expand(-1, 1, -1, 3))[:, 0]
     for _ in range(iterations):
-        rel = X[:, None] - o  # (B, V, J, 3)
-        perp = rel - (rel * d).sum(-1, keepdim=True) * d
+        perp = _perpendicular(X[:, None] - o, d)  # (B, V, J, 3)
         wr = w / (1 + (perp**2).sum(-1) / ROBUST_SCALE**2)
-        wrM = wr[..., None, None] * M
-        Xr, cond_r = _solve3(wrM.sum(1), (wrM @ o.unsqueeze(-1)).squeeze(-1).sum(1))
+        wrM, wrMo = _ray_terms(wr, M, o)
+        Xr, cond_r = _solve3(wrM.sum(1), wrMo.sum(1))
         X = torch.where((valid & (cond_r > 1e-4))[..., None], Xr, X)
     return X
 
@@ -349,8 +361,7 @@ class RMPL(nn.Module):
         if c.inputs != "rays":
             feats = _pixel_features(c, keypoints, cameras, ok, J)
         if c.geometric:
-            rel = o - base[:, None]  # (B, V, J, 3)
-            perp = rel - (rel * d).sum(-1, keepdim=True) * d
+            perp = _perpendicular(o - base[:, None], d)  # (B, V, J, 3)
             feats.append((perp / PERP_SCALE).clamp(-8, 8))
         x = torch.cat(feats, -1)
         conf = scores[..., None] if c.confidence else torch.zeros_like(scores[..., None])
