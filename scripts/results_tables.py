@@ -128,7 +128,7 @@ def mhp_occlusion() -> None:
 
 def occlusion_plot(out: Path) -> None:
     """MPJPE on common joints vs the occlusion-square probability on the MHP renders."""
-    from rmpl.evaluate_plots import sweep_plot
+    from rmpl.evaluate.plots import sweep_plot
 
     sets = {0.0: "mhp_val", 0.2: "mhp_val_occ0.2", 0.4: "mhp_val_occ0.4"}
     data = {p: rows(name) for p, name in sets.items()}

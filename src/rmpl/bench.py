@@ -74,7 +74,7 @@ def run_bench(
     models = {}
     for name in presets:
         if name == "default" and (PRETRAINED["default"] / "config.json").is_file():
-            from rmpl.train import load_checkpoint
+            from rmpl.training.loop import load_checkpoint
 
             models[name] = load_checkpoint(PRETRAINED["default"])[0]
         else:

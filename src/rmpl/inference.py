@@ -139,7 +139,7 @@ class Lifter:
 
         ``backend``: "onnx" (onnxruntime, fastest on CPU), "torch", or "auto" (onnx when
         onnxruntime is installed)."""
-        from rmpl.train import load_checkpoint
+        from rmpl.training.loop import load_checkpoint
 
         path = PRETRAINED.get(str(name_or_path), Path(name_or_path))
         if not (Path(path) / "config.json").is_file():

@@ -12,7 +12,7 @@ from rmpl.io.calibration import save_rig
 from rmpl.io.keypoints import Keypoints2D, save_keypoints
 from rmpl.io.poses import load_poses
 from rmpl.model.lifter import PRESETS, RMPL
-from rmpl.train import save_checkpoint
+from rmpl.training.loop import save_checkpoint
 
 
 def make_scene(tmp_path, views=3, frames=6, seed=0):

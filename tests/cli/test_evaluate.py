@@ -110,7 +110,7 @@ def test_evaluate_mhp_directory(tmp_path, capsys):
     projections here, so triangulation is exact), and the header says where the 2D is from."""
     import csv
 
-    from tests.test_mhp_source import _fake_mhp
+    from tests.data.test_mhp import _fake_mhp
 
     root = _fake_mhp(tmp_path / "mhp")
     out = tmp_path / "out"

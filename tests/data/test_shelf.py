@@ -7,16 +7,16 @@ import json
 import numpy as np
 import pytest
 
-from rmpl.association import (
+from rmpl.data.shelf import load_shelf
+from rmpl.errors import InputError
+from rmpl.geometry.camera import look_at
+from rmpl.geometry.triangulate import triangulate
+from rmpl.pipeline.association import (
     BODY25_LIMBS,
     associate,
     group_people,
     match_poses,
 )
-from rmpl.data.shelf import load_shelf
-from rmpl.errors import InputError
-from rmpl.geometry.camera import look_at
-from rmpl.geometry.triangulate import triangulate
 from rmpl.skeleton import BODY25, SHELF14, SHELF_LIMB_JOINTS, convert
 
 W, H = 1032, 776

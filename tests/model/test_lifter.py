@@ -11,7 +11,7 @@ from rmpl.model.lifter import (
     build_model,
     camera_features,
 )
-from rmpl.train import load_checkpoint, save_checkpoint
+from rmpl.training.loop import load_checkpoint, save_checkpoint
 
 
 def scene(B=4, V=4, seed=0):

@@ -77,9 +77,9 @@ def _shelf4d_keypoints(root: Path):
     """Shelf/4D-association detections: group each view's candidates into people."""
     from tqdm import tqdm
 
-    from rmpl.association import group_people
     from rmpl.data.shelf import load_shelf
     from rmpl.io.keypoints import Keypoints2D
+    from rmpl.pipeline.association import group_people
 
     data = load_shelf(root)
     groups = [
@@ -110,14 +110,14 @@ def _load_2d(args: argparse.Namespace, cache: Path | None):
         if shelf is not None:
             return _shelf4d_keypoints(shelf)
         return load_keypoints(args.keypoints, skeleton=args.skeleton)
-    from rmpl.detect2d import (
+    from rmpl.io.calibration import load_rig
+    from rmpl.pipeline.detect2d import (
         check_image_folders,
         check_videos,
         detect_images,
         detect_videos,
         input_fingerprint,
     )
-    from rmpl.io.calibration import load_rig
 
     kind = "videos" if getattr(args, "videos", None) else "images"
     sources = args.videos if kind == "videos" else args.images
@@ -198,7 +198,7 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     """``rmpl lift`` / ``rmpl triangulate``: per-frame estimates, associated and tracked,
     without temporal smoothing, written to one file."""
     from rmpl.io.poses import save_poses
-    from rmpl.pipeline import RunConfig, run
+    from rmpl.pipeline.runner import RunConfig, run
 
     out = check_output(args.out)
     inputs = load_calibration_and_2d(args)

@@ -167,7 +167,7 @@ def _calib(args) -> tuple[float, float] | None:
 
 
 def _methods(spec: str) -> dict:
-    from rmpl.evaluate import make_method
+    from rmpl.evaluate.harness import make_method
 
     names = [m.strip() for m in spec.split(",") if m.strip()]
     if not names:
@@ -178,7 +178,7 @@ def _methods(spec: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rmpl.evaluate import EvalConfig
+    from rmpl.evaluate.harness import EvalConfig
 
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise InputError(args.out, None, "an output folder", "an existing file")
@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         return _run_synthetic(args, config, methods)
     if args.cameras == "sphere" or args.cameras == "random":
         raise InputError(None, "--cameras", f"camera names for {args.dataset}", args.cameras)
-    from rmpl.evaluate import evaluate, evaluate_poses, load_eval_set, view_subsets
+    from rmpl.evaluate.harness import evaluate, evaluate_poses, load_eval_set, view_subsets
 
     if args.poses:
         _check_poses_options(args)
@@ -236,9 +236,9 @@ def run(args: argparse.Namespace) -> int:
 def _run_recording(args, methods: dict) -> int:
     """Held-out-view reprojection errors on a recording without 3D ground truth."""
     from rmpl.cli._common import load_calibration_and_2d
-    from rmpl.evaluate import markdown_table
-    from rmpl.evaluate_heldout import heldout_rows, heldout_view_errors
-    from rmpl.pipeline import associate_frames
+    from rmpl.evaluate.harness import markdown_table
+    from rmpl.evaluate.heldout import heldout_rows, heldout_view_errors
+    from rmpl.pipeline.runner import associate_frames
 
     if args.calib is None or not args.keypoints:
         raise InputError(None, "--calib/--keypoints", "both, for --dataset recording", "missing")
@@ -362,7 +362,7 @@ def _command(args) -> str:
 
 def _real_outputs(ev, args) -> dict[str, object]:
     """File name -> text (tables) for a real-dataset evaluation."""
-    from rmpl.evaluate import (
+    from rmpl.evaluate.harness import (
         header_lines,
         markdown_table,
         per_group_rows,
@@ -440,7 +440,7 @@ def _sweep_table(rows: list[dict], cfg) -> str:
 
 
 def _write(out: Path, files: dict[str, object], ev) -> None:
-    from rmpl.evaluate import write_csv
+    from rmpl.evaluate.harness import write_csv
 
     out.mkdir(parents=True, exist_ok=True)
     for name, content in files.items():
@@ -458,8 +458,8 @@ def _write(out: Path, files: dict[str, object], ev) -> None:
 
 
 def _real_plots(out: Path, ev) -> None:
-    from rmpl.evaluate import joint_errors_mm, results_rows
-    from rmpl.evaluate_plots import joint_bars, joint_boxplot, sweep_plot
+    from rmpl.evaluate.harness import joint_errors_mm, results_rows
+    from rmpl.evaluate.plots import joint_bars, joint_boxplot, sweep_plot
 
     cfg = ev.config
     errors, bars = {}, {}
@@ -584,8 +584,8 @@ def _run_synthetic(args, config, methods) -> int:
         ]
     if mode == "sphere":
         return _run_sphere(args, config, held.poses, methods, head)
-    from rmpl.evaluate import markdown_table, pose_metrics, write_csv
-    from rmpl.evaluate_synthetic import evaluate_synthetic
+    from rmpl.evaluate.harness import markdown_table, pose_metrics, write_csv
+    from rmpl.evaluate.synthetic import evaluate_synthetic
 
     counts = _view_counts(args.views)
     preds: dict = {}
@@ -683,7 +683,7 @@ def _view_counts(spec: str | None) -> list[int]:
 
 
 def _synthetic_plots(out: Path, rows, errors, config) -> None:
-    from rmpl.evaluate_plots import joint_bars, joint_boxplot, sweep_plot
+    from rmpl.evaluate.plots import joint_bars, joint_boxplot, sweep_plot
 
     joint_boxplot(errors, out / "joint_errors_box.png", "synthetic, per-joint error")
     bars = {
@@ -735,8 +735,8 @@ def _synthetic_plots(out: Path, rows, errors, config) -> None:
 
 
 def _run_sphere(args, config, poses, methods, head) -> int:
-    from rmpl.evaluate import markdown_table, write_csv
-    from rmpl.evaluate_synthetic import evaluate_sphere
+    from rmpl.evaluate.harness import markdown_table, write_csv
+    from rmpl.evaluate.synthetic import evaluate_sphere
 
     if args.views is not None:
         raise InputError(None, "--views", "no --views with --cameras sphere (always 2)", args.views)
@@ -804,7 +804,7 @@ def _run_sphere(args, config, poses, methods, head) -> int:
     )
     print(text)
     if args.out:
-        from rmpl.evaluate_plots import sweep_plot
+        from rmpl.evaluate.plots import sweep_plot
 
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)

@@ -36,8 +36,8 @@ def run(args: argparse.Namespace) -> int:
     from rmpl.cli._common import load_calibration_and_2d
     from rmpl.cli.run import FORMATS, write_all
     from rmpl.metrics import mpjpe
-    from rmpl.pipeline import RunConfig
-    from rmpl.pipeline import run as run_pipeline
+    from rmpl.pipeline.runner import RunConfig
+    from rmpl.pipeline.runner import run as run_pipeline
     from rmpl.skeleton import KP_STAR
 
     ns = argparse.Namespace(

@@ -103,8 +103,8 @@ def _formats(text: str) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     from rmpl.cli._common import load_calibration_and_2d
     from rmpl.cli.lift import axis_vector
-    from rmpl.pipeline import RunConfig
-    from rmpl.pipeline import run as run_pipeline
+    from rmpl.pipeline.runner import RunConfig
+    from rmpl.pipeline.runner import run as run_pipeline
 
     formats = _formats(args.formats)
     if args.min_track < 1:
@@ -134,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
 
 def write_input_overlays(args: argparse.Namespace, poses, inputs, out: Path) -> list[Path]:
     """The result drawn onto the input videos/images, one overlay per camera."""
-    from rmpl.detect2d import view_names
-    from rmpl.overlay import write_overlays
+    from rmpl.pipeline.detect2d import view_names
+    from rmpl.pipeline.overlay import write_overlays
 
     kind = "videos" if args.videos else "images"
     sources = args.videos or args.images
@@ -201,8 +201,8 @@ def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = Tru
     )
     if not pictures:
         return
-    from rmpl.viewer import write_viewer
-    from rmpl.viz import plot_reprojection, plot_skeletons
+    from rmpl.viz.plots import plot_reprojection, plot_skeletons
+    from rmpl.viz.viewer import write_viewer
 
     write_viewer(poses, out / "viewer.html", cameras=inputs.rig)
     plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig)

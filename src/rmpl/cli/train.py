@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from rmpl.train import TrainConfig, train
+from rmpl.training.loop import TrainConfig, train
 
 log = logging.getLogger(__name__)
 

@@ -9,7 +9,7 @@ people detected in one view and frame, ``J`` joints.
 
 People in the 2D keypoints are **not associated across views** (nor across frames): person
 ``n`` of view 0 and person ``n`` of view 1 need not be the same person, and neither needs
-to be ground-truth person ``n``. Associating them is the job of :mod:`rmpl.association`.
+to be ground-truth person ``n``. Associating them is the job of :mod:`rmpl.pipeline.association`.
 """
 
 from __future__ import annotations

@@ -10,8 +10,8 @@ from rmpl.io.calibration import save_rig
 from rmpl.io.keypoints import Keypoints2D, save_keypoints
 from rmpl.io.poses import JointSource, load_poses
 from rmpl.model.lifter import PRESETS, RMPL
-from rmpl.pipeline import RunConfig, run
-from rmpl.train import save_checkpoint
+from rmpl.pipeline.runner import RunConfig, run
+from rmpl.training.loop import save_checkpoint
 
 
 def two_walkers(T=40, views=4, seed=0):

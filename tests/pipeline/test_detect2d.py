@@ -1,4 +1,4 @@
-"""2D detection from videos and image folders (rmpl.detect2d) and ``rmpl run --videos``.
+"""2D detection from videos and image folders (rmpl.pipeline.detect2d) and ``rmpl run --videos``.
 
 The bad-input and cache tests need only OpenCV and use a stand-in detector. The end-to-end
 test runs the real MediaPipe detector on videos of an anny body rendered here, so it needs
@@ -23,7 +23,7 @@ from tests.conftest import synth_ready
 
 cv2 = pytest.importorskip("cv2")
 
-from rmpl.detect2d import (  # noqa: E402  (after the importorskip)
+from rmpl.pipeline.detect2d import (  # noqa: E402  (after the importorskip)
     check_image_folders,
     check_videos,
     detect_images,

@@ -240,7 +240,7 @@ def _layout(view_pts: np.ndarray, view_cams: np.ndarray) -> dict:
 
 
 def _page(data_json: str, title: str) -> str:
-    pkg = resources.files("rmpl.viewer")
+    pkg = resources.files("rmpl.viz.viewer")
     template = (pkg / "template.html").read_text(encoding="utf-8")
     three = (pkg / "vendor" / "three.module.min.js").read_text(encoding="utf-8")
     parts = {

@@ -187,7 +187,13 @@ def write_overlays(
     """
     from tqdm import tqdm
 
-    from rmpl.detect2d import _cv2, check_image_folders, check_videos, image_frames, video_frames
+    from rmpl.pipeline.detect2d import (
+        _cv2,
+        check_image_folders,
+        check_videos,
+        image_frames,
+        video_frames,
+    )
 
     _cv2()  # a clear ImportError without OpenCV
     if kind not in ("videos", "images"):

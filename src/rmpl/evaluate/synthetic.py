@@ -51,7 +51,7 @@ def _dropout(kp, sc, p: float, rng: np.random.Generator):
 
 
 def _row(pred: np.ndarray, target: np.ndarray, pck: float) -> dict[str, float]:
-    from rmpl.evaluate import pose_metrics
+    from rmpl.evaluate.harness import pose_metrics
 
     m = pose_metrics(pred, target, ALL_JOINTS, pck)
     return {k: m[k] for k in ("mpjpe", "kpstar", "coverage", "pa_mpjpe", "pck")}
@@ -87,7 +87,7 @@ def evaluate_synthetic(
     Args:
         poses: held-out COCO-17 poses, shape (N, 17, 3), metres, z up (ignored with
             ``shards``).
-        methods: name -> method (see :func:`rmpl.evaluate.make_method`).
+        methods: name -> method (see :func:`rmpl.evaluate.harness.make_method`).
         view_counts: numbers of cameras per scene.
         samples: scenes per view count (and condition).
         seed: seed of the scenes, the 2D noise, the dropout masks and calibration noise.

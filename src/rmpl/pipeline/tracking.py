@@ -1,6 +1,6 @@
 """Identities over time: link the 3D people of successive frames into tracks.
 
-Each frame's people come unordered (from :func:`rmpl.association.associate` or any other
+Each frame's people come unordered (from :func:`rmpl.pipeline.association.associate` or any other
 source). A track predicts where its person will be with a constant-velocity model; the
 predictions and the new people are matched by the Hungarian algorithm on the mean
 distance between their joints, and a match farther than ``max_distance`` is refused

@@ -11,10 +11,10 @@ import pytest
 import torch
 
 from rmpl.errors import InputError
-from rmpl.train import TrainConfig, load_checkpoint, train
+from rmpl.training.loop import TrainConfig, load_checkpoint, train
 from tests.conftest import synth_ready
 
-EXAMPLE = Path(__file__).parents[1] / "src/rmpl/examples/walk/ground_truth.npz"
+EXAMPLE = Path(__file__).parents[2] / "src/rmpl/examples/walk/ground_truth.npz"
 
 
 @pytest.fixture(scope="module")
@@ -211,8 +211,8 @@ def test_noise_randomization_varies_the_detector_per_training_batch(poses):
 def test_mhp_with_too_few_views_is_refused_at_start(poses, tmp_path):
     """max_views above the MHP directories' views per mesh fails before training, clearly."""
     from rmpl.errors import InputError
-    from rmpl.train import _training_source
-    from tests.test_mhp_source import _fake_mhp
+    from rmpl.training.loop import _training_source
+    from tests.data.test_mhp import _fake_mhp
 
     _fake_mhp(tmp_path / "mhp", views=3)
     cfg = TrainConfig.from_dict({"mhp": [str(tmp_path / "mhp")], "mhp_weight": 0.5, "max_views": 5})

@@ -1,4 +1,4 @@
-"""Reprojection overlays (rmpl.overlay) on tiny synthetic videos and image folders."""
+"""Reprojection overlays (rmpl.pipeline.overlay) on tiny synthetic videos and image folders."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ from rmpl.io.poses import Poses3D
 
 cv2 = pytest.importorskip("cv2")
 
-from rmpl.overlay import DETECTION_COLOR, PERSON_COLORS, write_overlays  # noqa: E402
+from rmpl.pipeline.overlay import DETECTION_COLOR, PERSON_COLORS, write_overlays  # noqa: E402
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "src" / "rmpl" / "examples" / "walk"
+EXAMPLE = Path(__file__).resolve().parents[2] / "src" / "rmpl" / "examples" / "walk"
 W, H = 320, 240
 
 

@@ -3,11 +3,11 @@
 Each stage is a function usable on its own:
 
 1. :func:`associate_frames`: per frame, group the views' 2D people into 3D people by
-   geometry (:mod:`rmpl.association`); with one person per view this is the identity.
+   geometry (:mod:`rmpl.pipeline.association`); with one person per view this is the identity.
 2. :func:`estimate`: lift (RMPL) or triangulate every associated person, all frames batched.
-3. :func:`track_people`: identities over time (:mod:`rmpl.tracking`).
+3. :func:`track_people`: identities over time (:mod:`rmpl.pipeline.tracking`).
 4. :func:`smooth`: outlier removal, gap filling (flagged as interpolated) and a zero-phase
-   Butterworth or a one-euro filter (:mod:`rmpl.temporal`).
+   Butterworth or a one-euro filter (:mod:`rmpl.pipeline.filters`).
 
 :func:`run` chains them and returns a :class:`rmpl.io.poses.Poses3D`.
 
@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from rmpl.association import Association, AssociationConfig, associate
 from rmpl.geometry.camera import Rig
 from rmpl.io.poses import JointSource, Poses3D
+from rmpl.pipeline.association import Association, AssociationConfig, associate
 
 __all__ = ["RunConfig", "associate_frames", "estimate", "track_people", "smooth", "run"]
 
@@ -205,7 +205,7 @@ def track_people(
     Returns:
         tracks (T, P, J, 3), views (T, P, J) (0 where absent), ids (P,).
     """
-    from rmpl.tracking import track, track_indices
+    from rmpl.pipeline.tracking import track, track_indices
 
     T = len(points)
     J = points[0].shape[-2] if T else 17
@@ -242,7 +242,7 @@ def smooth(
         smoothed (T, P, J, 3) and interpolated (T, P, J) bool: joints filled by the gap
         filler (they were missing before).
     """
-    from rmpl import temporal
+    from rmpl.pipeline import filters as temporal
 
     x = tracks
     if config.hampel and len(x) >= 7:

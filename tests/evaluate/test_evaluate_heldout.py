@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rmpl.cli import main
-from rmpl.evaluate_heldout import heldout_rows, heldout_view_errors
+from rmpl.evaluate.heldout import heldout_rows, heldout_view_errors
 from rmpl.geometry.triangulate import triangulate
 from tests.cli.test_commands import make_scene
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rmpl.errors import InputError
-from rmpl.tracking import track, track_indices
+from rmpl.pipeline.tracking import track, track_indices
 
 J = 17
 FPS = 30.0

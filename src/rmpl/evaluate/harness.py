@@ -10,7 +10,7 @@ Protocols (chosen per dataset, stated in every output header):
 - **multi-person, detected 2D** (Shelf, Campus, Panoptic with a user file): per view the
   detections are grouped into people (Shelf's OpenPose candidates with their part
   affinities; other sources are people already); the people of the views in use are
-  associated by ray distance (:func:`rmpl.association.associate`), re-run for every view
+  associated by ray distance (:func:`rmpl.pipeline.association.associate`), re-run for every view
   subset (a single view: every 2D person is a 3D person); each method's estimates are
   matched to the ground-truth people by Hungarian assignment on the mean distance of the
   evaluated joints (0.5 m gate). An unmatched person counts as missing: outside MPJPE,
@@ -249,7 +249,7 @@ class EvalSet:
     def protocol_text(self) -> str:
         return {
             "associate": "2D people of the views in use associated by ray distance per view "
-            "subset (rmpl.association.associate; 1 view: every 2D person is a 3D person), "
+            "subset (rmpl.pipeline.association.associate; 1 view: every 2D person is a 3D person), "
             f"then matched to ground truth by Hungarian assignment on the mean distance of "
             f"the evaluated joints ({MATCH_GATE} m gate); unmatched people count as missing",
             "single": "single person: in each view the detected person with the highest total "
@@ -354,8 +354,8 @@ def _shelf4d(root: Path) -> MultiViewDataset:
     """Shelf in the 4D-association layout, with each view's candidates grouped into people."""
     from tqdm import tqdm
 
-    from rmpl.association import group_people
     from rmpl.data.shelf import load_shelf
+    from rmpl.pipeline.association import group_people
 
     data = load_shelf(root)
     groups = [
@@ -614,7 +614,7 @@ def _per_person_input(data: MultiViewDataset, views: tuple[int, ...], protocol: 
         keypoints (M, k, 17, 2), scores (M, k, 17), frame index (M,), ground-truth slot
         (M,) (-1: to be matched).
     """
-    from rmpl.association import associate
+    from rmpl.pipeline.association import associate
 
     kp_all = data.keypoints[:, list(views)]  # (T, k, N, 17, 2)
     sc_all = data.scores[:, list(views)]
@@ -666,7 +666,7 @@ def _dropout(kp, sc, p: float, rng: np.random.Generator):
 
 def _assign(pred, frame, slot, gt_frames, joints, gate) -> np.ndarray:
     """Place predictions (M, 17, 3) onto ground-truth slots: (T, P, 17, 3), NaN if unmatched."""
-    from rmpl.association import match_poses
+    from rmpl.pipeline.association import match_poses
 
     T, P = gt_frames.shape[:2]
     out = np.full((T, P, 17, 3), np.nan)
@@ -742,7 +742,7 @@ def evaluate(
     """
     from tqdm import tqdm
 
-    from rmpl.association import AssociationConfig
+    from rmpl.pipeline.association import AssociationConfig
 
     cfg = config or EvalConfig()
     conditions = cfg.conditions()

@@ -15,7 +15,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig, look_at
 from rmpl.io.poses import Poses3D
 from rmpl.skeleton import COCO17, H36M17
-from rmpl.viewer import UP_AXES, guess_up, view_rotation, write_viewer
+from rmpl.viz.viewer import UP_AXES, guess_up, view_rotation, write_viewer
 
 K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
 

@@ -1,11 +1,14 @@
-"""Tests of rmpl.association on synthetic multi-person scenes built here."""
+"""Tests of rmpl.pipeline.association on synthetic multi-person scenes built here."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rmpl.association import (
+from rmpl.errors import InputError
+from rmpl.geometry.camera import Camera, Rig, look_at
+from rmpl.geometry.triangulate import triangulate
+from rmpl.pipeline.association import (
     BODY25_LIMBS,
     Association,
     AssociationConfig,
@@ -18,9 +21,6 @@ from rmpl.association import (
     match_poses,
     ray_distance_cost,
 )
-from rmpl.errors import InputError
-from rmpl.geometry.camera import Camera, Rig, look_at
-from rmpl.geometry.triangulate import triangulate
 from rmpl.skeleton import BODY25, COCO17
 
 # A standing stick figure in COCO-17 order, body frame (x = its left, y = forward, z up).

@@ -12,7 +12,7 @@ import pytest
 
 from rmpl.cli import main
 from rmpl.errors import InputError
-from rmpl.evaluate import (
+from rmpl.evaluate.harness import (
     EvalConfig,
     evaluate,
     load_eval_set,
@@ -76,7 +76,7 @@ def test_loader_through_evaluate(
         assert part.gt.shape[0] == T and part.gt.shape[1] <= people
     # Units: metres. Upper-arm and thigh lengths of adults, wherever annotated.
     for part in evset.parts:
-        from rmpl.evaluate import _gt_coco
+        from rmpl.evaluate.harness import _gt_coco
 
         X = _gt_coco(part)
         for a, b in ((5, 7), (6, 8), (11, 13), (12, 14)):
@@ -550,7 +550,7 @@ def test_annotations_requested_where_there_are_none(shared_data, capsys):
 def test_score_finished_results(fixtures, tmp_path, capsys):
     """Results written by another run are matched by frame number and person; a shifted
     person scores exactly its shift, a ghost person is ignored, a missing one is missing."""
-    from rmpl.evaluate import _gt_coco, evaluate_poses
+    from rmpl.evaluate.harness import _gt_coco, evaluate_poses
     from rmpl.io.poses import Poses3D, save_poses
 
     root = fixtures / "shelf"
