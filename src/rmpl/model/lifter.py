@@ -342,6 +342,18 @@ class RMPL(nn.Module):
         Returns:
             Joints, shape (B, J, 3), world metres.
         """
+        enc = self.encode(rays, scores, keypoints, cameras)
+        return enc.base + self.head(enc.tokens)
+
+    def encode(
+        self,
+        rays: torch.Tensor,
+        scores: torch.Tensor,
+        keypoints: torch.Tensor | None = None,
+        cameras: torch.Tensor | None = None,
+    ) -> Encoding:
+        """Everything but the output head: the fused joint tokens and the points the head
+        corrects. Arguments as in :meth:`forward`; ``forward = base + head(tokens)``."""
         c = self.config
         B, V, J, _ = rays.shape
         if J != c.num_joints:
@@ -351,16 +363,32 @@ class RMPL(nn.Module):
         ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
         rays = torch.where(ok[..., None], rays, torch.zeros_like(rays))
         scores = torch.where(ok, scores, torch.zeros_like(scores))
-        o, d = rays[..., :3], rays[..., 3:]
-
         if c.recenter or c.geometric:
             base, valid, P = anchors_from_rays(rays, scores, robust=c.robust_anchor)
+        else:
+            valid = torch.zeros(B, J, dtype=torch.bool, device=rays.device)
         if not c.recenter:
             P = torch.zeros(B, 3, dtype=rays.dtype, device=rays.device)
+        fused = self._fuse_views(
+            rays, scores, ok, P, base if c.geometric else None, keypoints, cameras
+        )
+        y = fused + self.anatomy  # (B, J, D)
+        if c.geometric:
+            y = y + self.joint_embed(_joint_features(base, P, valid, ok))
+        tokens = self.pose_encoder(y)
+        return Encoding(
+            tokens, base if c.geometric else P[:, None].expand(B, J, 3), valid, ok.sum(1)
+        )
+
+    def _fuse_views(self, rays, scores, ok, P, base, keypoints, cameras) -> torch.Tensor:
+        """The View Fusion Transformer: one fused token per joint, (B, J, D)."""
+        c = self.config
+        B, V, J, _ = rays.shape
+        o, d = rays[..., :3], rays[..., 3:]
         feats = [(o - P[:, None, None]) / ORIGIN_SCALE, d]
         if c.inputs != "rays":
             feats = _pixel_features(c, keypoints, cameras, ok, J)
-        if c.geometric:
+        if base is not None:
             perp = _perpendicular(o - base[:, None], d)  # (B, V, J, 3)
             feats.append((perp / PERP_SCALE).clamp(-8, 8))
         x = torch.cat(feats, -1)
@@ -375,22 +403,38 @@ class RMPL(nn.Module):
             ],
             1,
         )
-        fused = self.view_encoder(torch.cat([fusion, tokens], 1), mask)[:, 0]
-        y = fused.view(B, J, c.dim) + self.anatomy
-        if c.geometric:
-            n = ok.sum(1).to(rays.dtype)  # (B, J)
-            jf = torch.cat(
-                [
-                    base - P[:, None],
-                    valid[..., None].to(rays.dtype),
-                    (n[..., None] / 4).clamp(max=2),
-                    (n[..., None] > 0).to(rays.dtype),
-                ],
-                -1,
-            )
-            y = y + self.joint_embed(jf)
-        out = self.head(self.pose_encoder(y))
-        return (base if c.geometric else P[:, None]) + out
+        return self.view_encoder(torch.cat([fusion, tokens], 1), mask)[:, 0].view(B, J, c.dim)
+
+
+@dataclass
+class Encoding:
+    """What :meth:`RMPL.encode` returns.
+
+    Attributes:
+        tokens: (B, J, D) the Pose Fusion Transformer's output tokens.
+        base: (B, J, 3) the points the head corrects (ray intersections or the anchor), metres.
+        valid: (B, J) bool, the joint's ray intersection is valid (>= 2 views agree).
+        views: (B, J) int, the number of views that see the joint.
+    """
+
+    tokens: torch.Tensor
+    base: torch.Tensor
+    valid: torch.Tensor
+    views: torch.Tensor
+
+
+def _joint_features(base, P, valid, ok) -> torch.Tensor:
+    """Per-joint geometric features (B, J, 6): base - anchor, validity, view counts."""
+    n = ok.sum(1).to(base.dtype)  # (B, J)
+    return torch.cat(
+        [
+            base - P[:, None],
+            valid[..., None].to(base.dtype),
+            (n[..., None] / 4).clamp(max=2),
+            (n[..., None] > 0).to(base.dtype),
+        ],
+        -1,
+    )
 
 
 class MLPLifter(nn.Module):
