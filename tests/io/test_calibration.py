@@ -568,3 +568,48 @@ def test_writers_refuse_what_the_format_cannot_store(tmp_path):
         assert err.value.field == field
         assert not path.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------------------
+# A repeated key in a JSON calibration is refused, not silently dropped (issue 13, item 8)
+
+
+def _repeat_camera_key(text: str) -> str:
+    """The JSON text with camera "b"'s key renamed to "a": two entries under one key."""
+    assert text.count('"b"') == 1
+    return text.replace('"b"', '"a"')
+
+
+@pytest.mark.parametrize("fmt", ["shelf4d", "voxelpose"])
+def test_repeated_camera_key_is_refused(tmp_path, fmt):
+    path = tmp_path / OUTPUT_NAMES[fmt]
+    save_rig(_rig(), path, fmt)
+    path.write_text(_repeat_camera_key(path.read_text()))
+    err = _expect_error(path, "a")
+    assert "repeated" in str(err)
+    with pytest.raises(InputError, match="repeated"):
+        load_rig(path, fmt)
+
+
+def test_repeated_h36m_camera_id_is_refused(tmp_path):
+    intr = (
+        '{"calibration_matrix": [[1000, 0, 500], [0, 1000, 500], [0, 0, 1]], '
+        '"distortion": [0, 0, 0, 0, 0]}'
+    )
+    extr = '{"R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [[0], [0], [5000]]}'
+    text = (
+        f'{{"intrinsics": {{"c1": {intr}, "c1": {intr}}}, '
+        f'"extrinsics": {{"S1": {{"c1": {extr}}}}}}}'
+    )
+    path = tmp_path / "camera-parameters.json"
+    path.write_text(text)
+    assert "repeated" in str(_expect_error(path, "c1"))
+
+
+def test_repeated_key_in_rmpl_json_is_refused(tmp_path):
+    path = tmp_path / "calib.json"
+    save_rig(_rig(), path, "rmpl-json")
+    doc = path.read_text()
+    cameras = doc[doc.index('"cameras"') :].rstrip().removesuffix("}")
+    path.write_text(doc.rstrip().removesuffix("}") + ", " + cameras + "}\n")
+    assert "repeated" in str(_expect_error(path, "cameras"))

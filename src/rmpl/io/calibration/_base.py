@@ -61,12 +61,32 @@ def read_text(path: Path) -> str:
     return text
 
 
+class _RepeatedKey(Exception):
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+
+def _unique_object(pairs: list[tuple[str, object]]) -> dict:
+    """A JSON object that refuses a repeated key (json.load would keep the last entry)."""
+    seen: dict = {}
+    for key, value in pairs:
+        if key in seen:
+            raise _RepeatedKey(key)
+        seen[key] = value
+    return seen
+
+
 def load_json(path: Path) -> object:
+    """The JSON document in ``path``; a key repeated in one object is an error."""
     try:
-        return json.loads(read_text(path))
+        return json.loads(read_text(path), object_pairs_hook=_unique_object)
     except json.JSONDecodeError as e:
         raise InputError(
             path, None, "valid JSON", f"{e.msg} at line {e.lineno} column {e.colno}"
+        ) from None
+    except _RepeatedKey as e:
+        raise InputError(
+            path, e.key, "each key once per JSON object (one entry per camera)", "it repeated"
         ) from None
 
 
