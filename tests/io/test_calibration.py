@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import string
 import tempfile
@@ -613,3 +614,65 @@ def test_repeated_key_in_rmpl_json_is_refused(tmp_path):
     cameras = doc[doc.index('"cameras"') :].rstrip().removesuffix("}")
     path.write_text(doc.rstrip().removesuffix("}") + ", " + cameras + "}\n")
     assert "repeated" in str(_expect_error(path, "cameras"))
+
+
+# ---------------------------------------------------------------------------------------
+# A two-file output (EasyMocap) changes as a pair or not at all (issue 13, item 3)
+
+
+def _easymocap_pair(folder: Path) -> dict[str, str]:
+    return {p.name: p.read_text() for p in sorted(folder.iterdir())}
+
+
+def test_easymocap_pair_survives_a_failed_move(tmp_path, monkeypatch):
+    save_rig(_rig(), tmp_path, "easymocap")
+    old = _easymocap_pair(tmp_path)
+    new_rig = Rig(tuple(Camera(c.K, c.R, c.t + 1.0, c.dist, c.size, c.name) for c in _rig()))
+    real_replace, calls = os.replace, []
+
+    def replace_failing_second(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace_failing_second)
+    with pytest.raises(OSError):
+        save_rig(new_rig, tmp_path, "easymocap")
+    monkeypatch.undo()
+    assert _easymocap_pair(tmp_path) == old  # the old pair, whole; no temporary files left
+    save_rig(new_rig, tmp_path, "easymocap")
+    assert _easymocap_pair(tmp_path) != old
+    assert_same_rig(load_rig(tmp_path), new_rig)
+
+
+def test_easymocap_pair_survives_a_failed_serialisation(tmp_path, monkeypatch):
+    save_rig(_rig(), tmp_path, "easymocap")
+    old = _easymocap_pair(tmp_path)
+    real_write, calls = Path.write_text, []
+
+    def write_failing_second(self, *args, **kwargs):
+        calls.append(self)
+        if len(calls) == 2:
+            raise OSError(28, "No space left on device")
+        return real_write(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "write_text", write_failing_second)
+    new_rig = Rig(tuple(Camera(c.K, c.R, c.t + 1.0, c.dist, c.size, c.name) for c in _rig()))
+    with pytest.raises(OSError):
+        save_rig(new_rig, tmp_path, "easymocap")
+    monkeypatch.undo()
+    assert _easymocap_pair(tmp_path) == old
+
+
+def test_easymocap_output_onto_a_folder_is_refused_before_anything_moves(tmp_path):
+    save_rig(_rig(), tmp_path, "easymocap")
+    (tmp_path / "intri.yml").unlink()
+    (tmp_path / "intri.yml").mkdir()
+    extri = (tmp_path / "extri.yml").read_text()
+    new_rig = Rig(tuple(Camera(c.K, c.R, c.t + 1.0, c.dist, c.size, c.name) for c in _rig()))
+    with pytest.raises(InputError) as err:
+        save_rig(new_rig, tmp_path, "easymocap")
+    assert str(tmp_path / "intri.yml") in str(err.value) and "folder" in str(err.value)
+    assert (tmp_path / "extri.yml").read_text() == extri
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["extri.yml", "intri.yml"]

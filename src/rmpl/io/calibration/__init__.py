@@ -81,14 +81,13 @@ every reader shares.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 from pathlib import Path
 
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
-from rmpl.io.atomic import atomic_path
 from rmpl.io.calibration._base import CAMERA_TYPES, UNITS, CalibOptions
+from rmpl.io.calibration._write import write_all
 from rmpl.io.calibration.h36m import load_plain_pickle
 from rmpl.io.calibration.registry import FORMATS, detect_format, lookup, output_format, writable
 
@@ -149,7 +148,7 @@ def save_rig(
     units: str | None = None,
     camera_type: str = "hd",
 ) -> None:
-    """Write a rig; every file appears whole or not at all.
+    """Write a rig; its files (two for EasyMocap) appear whole and together, or not at all.
 
     Args:
         rig: the V cameras, translations in metres.
@@ -171,8 +170,5 @@ def save_rig(
     if writer is None:
         raise InputError(path, "format", f"a writable format, one of {writable()}", name)
     files = writer(rig, path, CalibOptions(units=units, camera_type=camera_type))
-    with contextlib.ExitStack() as stack:
-        tmps = {dst: stack.enter_context(atomic_path(dst)) for dst in files}
-        for dst, text in files.items():
-            tmps[dst].write_text(text, encoding="utf-8")
+    write_all(files)
     log.debug("wrote %d cameras to %s as %s", len(rig), path, name)
