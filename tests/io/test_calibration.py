@@ -676,3 +676,34 @@ def test_easymocap_output_onto_a_folder_is_refused_before_anything_moves(tmp_pat
     assert str(tmp_path / "intri.yml") in str(err.value) and "folder" in str(err.value)
     assert (tmp_path / "extri.yml").read_text() == extri
     assert sorted(p.name for p in tmp_path.iterdir()) == ["extri.yml", "intri.yml"]
+
+
+# ---------------------------------------------------------------------------------------
+# A file that cannot be read is one InputError, not a PermissionError traceback (issue 13, 6)
+
+
+def _refuse_reading(monkeypatch, path: Path) -> None:
+    """Make reading ``path`` fail as it does for a file the user may not read."""
+    real_read_text, real_read_bytes = Path.read_text, Path.read_bytes
+
+    def guard(real):
+        def read(self, *args, **kwargs):
+            if self == path:
+                raise PermissionError(13, "Permission denied", str(self))
+            return real(self, *args, **kwargs)
+
+        return read
+
+    monkeypatch.setattr(Path, "read_text", guard(real_read_text))
+    monkeypatch.setattr(Path, "read_bytes", guard(real_read_bytes))
+
+
+@pytest.mark.parametrize("name", ["calib.json", "calib.toml", "cameras.pkl"])
+def test_unreadable_file(tmp_path, monkeypatch, name):
+    path = tmp_path / name
+    if name.endswith(".pkl"):
+        path.write_bytes(pickle.dumps({}))
+    else:
+        save_rig(_rig(), path)
+    _refuse_reading(monkeypatch, path)
+    assert "Permission denied" in str(_expect_error(path, None))

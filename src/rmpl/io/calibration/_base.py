@@ -56,6 +56,8 @@ def read_text(path: Path) -> str:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
         raise InputError(path, None, "UTF-8 text", f"an undecodable byte at {e.start}") from None
+    except OSError as e:
+        raise InputError(path, None, "a readable file", e.strerror or type(e).__name__) from None
     if not text.strip():
         raise InputError(path, None, "a non-empty calibration file", "an empty file")
     return text

@@ -91,7 +91,10 @@ def load_plain_pickle(path: Path) -> object:
     """A pickle of plain containers and numpy arrays; any other global is refused."""
     if not path.is_file():
         raise InputError(path, None, "an existing file", "no such file")
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(path, None, "a readable file", e.strerror or type(e).__name__) from None
     if not data.strip():
         raise InputError(path, None, "a non-empty pickle file", "an empty file")
     try:
