@@ -244,6 +244,7 @@ def test_run_videos_end_to_end_with_a_stand_in_detector(tmp_path, monkeypatch):
     np.testing.assert_allclose(poses.points[:, 0], X, atol=1e-6)
     names = sorted(p.name for p in out.iterdir())
     assert names == [
+        ".rmpl-outputs.json",  # the list of the committed set (rmpl.io.atomic.staged_folder)
         "keypoints2d.inputs.json",
         "keypoints2d.npz",
         "overlay_cam0.mp4",

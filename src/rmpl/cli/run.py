@@ -15,6 +15,11 @@ OUT/keypoints2d.inputs.json: a second run on the same inputs skips detection, a 
 other inputs detects again. An interrupted detection resumes from the views already done
 (OUT/.detect2d/).
 
+The outputs change as a unit: they are written into OUT/.rmpl-staging.<pid>/ and moved in
+through a journal (OUT/.rmpl-commit.json) once all are complete, so a failed or killed run
+leaves the previous complete set (or, if killed while moving, a journal the next run or
+reader finishes). Other files in OUT are left alone (docs/reliability.md).
+
 Examples:
   rmpl run --calib Calib.qca.txt --keypoints pose/ --out results/
   rmpl run --calib calibration.json --keypoints shelf_dev/ --out shelf/ --method robust
@@ -25,6 +30,7 @@ Examples:
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 from pathlib import Path
 
@@ -126,9 +132,10 @@ def run(args: argparse.Namespace) -> int:
     poses = run_pipeline(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
     )
-    write_all(poses, inputs, out, formats, pictures=not args.no_pictures)
+    overlays = None
     if (args.videos or args.images) and not args.no_overlay:
-        write_input_overlays(args, poses, inputs, out)
+        overlays = functools.partial(write_input_overlays, args, poses, inputs)
+    write_all(poses, inputs, out, formats, pictures=not args.no_pictures, overlays=overlays)
     return 0
 
 
@@ -178,11 +185,35 @@ def _write_bvh(poses, out: Path) -> None:
             log.warning("skipping %s: %s", name, e)
 
 
-def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True) -> None:
-    """Every requested export plus the viewer page and the two pictures."""
+def write_all(
+    poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None
+) -> None:
+    """Every requested export plus the viewer page, the pictures and ``overlays(folder)``,
+    committed into ``out`` as one set (:func:`rmpl.io.atomic.staged_folder`): after a failure
+    or a kill, ``out`` holds the previous complete set or this one, never a mix."""
+    from rmpl.io.atomic import staged_folder
+
+    with staged_folder(out) as stage:
+        _export(poses, stage, formats)
+        ok = np.isfinite(poses.points).all(-1)
+        if pictures:
+            _pictures(poses, inputs, stage, ok)
+        if overlays is not None:
+            overlays(stage)
+    log.info(
+        "%d frames, %d people, %.0f%% of joints present; wrote %s",
+        len(poses.points),
+        poses.points.shape[1],
+        100 * ok.mean(),
+        out,
+    )
+    if pictures:
+        log.info("open %s in a browser to see the result", out / "viewer.html")
+
+
+def _export(poses, out: Path, formats: list[str]) -> None:
     from rmpl.io.poses import save_poses
 
-    out.mkdir(parents=True, exist_ok=True)
     for fmt in formats:
         if fmt in ("trc", "c3d", "bvh") and not poses.fps:
             log.warning("skipping %s: no frame rate (give --fps)", fmt.upper())
@@ -191,16 +222,9 @@ def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = Tru
             _write_bvh(poses, out)
             continue
         save_poses(poses, out / f"poses.{fmt}")
-    ok = np.isfinite(poses.points).all(-1)
-    log.info(
-        "%d frames, %d people, %.0f%% of joints present; wrote %s",
-        len(poses.points),
-        poses.points.shape[1],
-        100 * ok.mean(),
-        out,
-    )
-    if not pictures:
-        return
+
+
+def _pictures(poses, inputs, out: Path, ok: np.ndarray) -> None:
     from rmpl.viz.plots import plot_reprojection, plot_skeletons
     from rmpl.viz.viewer import write_viewer
 
@@ -213,4 +237,3 @@ def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = Tru
         plot_reprojection(
             kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest
         )
-    log.info("open %s in a browser to see the result", out / "viewer.html")

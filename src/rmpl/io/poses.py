@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.errors import InputError
-from rmpl.io.atomic import atomic_path
+from rmpl.io.atomic import atomic_path, finish_commit
 from rmpl.io.keypoints import (
     _check_fps,
     _check_frames,
@@ -271,6 +271,7 @@ def load_poses(
         raise InputError(path, None, f"an .npz, .json or .trc file ({fmt} is write-only)", fmt)
     if up_axis not in (None, "z", "y") or (up_axis == "y" and fmt != "trc"):
         raise InputError(path, "up_axis", "None, 'z' or 'y' (TRC only)", up_axis)
+    finish_commit(path.parent)  # a run killed while committing its outputs
     if not path.is_file():
         raise InputError(path, None, "an existing file", "no such file")
     fields = {"npz": _npz_fields, "json": _json_fields, "trc": _trc_fields}[fmt](path)
