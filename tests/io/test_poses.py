@@ -257,6 +257,24 @@ def test_c3d_reads_back_with_the_c3d_package(tmp_path, units):
     assert (by_number[5][:, 3] == -1).all()  # frame 4 (rmpl) is not in the poses
 
 
+def test_c3d_with_40_people_puts_labels_past_255_in_labels2(tmp_path):
+    # 40 x 17 = 680 points: one C3D parameter holds 255 labels (a one-byte dimension).
+    poses = _poses(T=3, P=40, fps=30.0, ids=list(range(100, 140)))
+    path = save_poses(poses, tmp_path / "many.c3d")
+    reader, frames, first, _ = _read_c3d(path)
+    labels = list(first)
+    for extra in ("POINT:LABELS2", "POINT:LABELS3"):
+        labels += [str(s).strip() for s in reader.get(extra).string_array]
+    assert reader.get("POINT:LABELS4") is None
+    assert labels == [f"{j}_p{p}" for p in range(100, 140) for j in COCO17.joints]
+    assert reader.point_used == 680 and len(frames) == 3
+    want = poses.points.reshape(3, 680, 3)
+    for t, (_, pts, _) in enumerate(frames):
+        ok = ~np.isnan(want[t]).any(-1)
+        np.testing.assert_array_equal(pts[:, 3] < 0, ~ok)
+        np.testing.assert_allclose(pts[ok, :3], want[t][ok], rtol=1e-6, atol=1e-4)
+
+
 def test_c3d_up_axis(tmp_path):
     poses = Poses3D(np.array([[[[1.0, 2.0, 3.0]] * 17]]), fps=30.0)
     _, frames, _, _ = _read_c3d(save_poses(poses, tmp_path / "p.c3d", up_axis="y"))

@@ -84,6 +84,7 @@ _TRC_KEYS = (
     "OrigNumFrames",
 )
 # Z-up world -> Y-up file: rotation by -90 degrees about X, (x, y, z) -> (x, z, -y).
+_C3D_MAX_ITEMS = 255  # a C3D parameter dimension is one unsigned byte
 _Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
@@ -513,7 +514,7 @@ def _write_c3d(poses: Poses3D, tmp: Path, units: str, up_axis: str | None) -> No
     block[rows, :, :3] = np.where(ok[..., None], pts, 0.0)
     block[rows, :, 3] = np.where(ok, 0.0, -1.0)
     writer = c3d.Writer(point_rate=poses.fps, analog_rate=0.0, point_units=units)
-    writer.set_point_labels(_marker_names(poses))
+    _c3d_labels(writer, _marker_names(poses))
     writer.set_start_frame(first + 1)
     no_analog = np.zeros((0, 0), np.float32)
     writer.add_frames([(frame, no_analog) for frame in block])
@@ -521,6 +522,20 @@ def _write_c3d(poses: Poses3D, tmp: Path, units: str, up_axis: str | None) -> No
         warnings.filterwarnings("ignore", "No analog data", UserWarning)
         with open(tmp, "wb") as f:
             writer.write(f)
+
+
+def _c3d_labels(writer, labels: list[str]) -> None:
+    """POINT:LABELS and POINT:DESCRIPTIONS, 255 a parameter (a C3D dimension is one byte):
+    the points after the first 255 go to LABELS2, LABELS3, ... (DESCRIPTIONS2, ...), the
+    extension C3D readers (Vicon, Motion Lab's C3D spec, ezc3d) follow."""
+    group = writer.point_group
+    for i in range(0, len(labels), _C3D_MAX_ITEMS):
+        suffix = "" if i == 0 else str(i // _C3D_MAX_ITEMS + 1)
+        chunk = labels[i : i + _C3D_MAX_ITEMS]
+        text, size = writer.pack_labels(chunk)
+        group.add_str(f"LABELS{suffix}", "Point labels.", text, size, len(chunk))
+        blank = " " * len(chunk)
+        group.add_str(f"DESCRIPTIONS{suffix}", "Point descriptions.", blank, 1, len(chunk))
 
 
 # --------------------------------------------------------------------------- BVH
