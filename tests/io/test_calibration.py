@@ -707,3 +707,26 @@ def test_unreadable_file(tmp_path, monkeypatch, name):
         save_rig(_rig(), path)
     _refuse_reading(monkeypatch, path)
     assert "Permission denied" in str(_expect_error(path, None))
+
+
+# ---------------------------------------------------------------------------------------
+# true/false where numbers belong is refused (they would read as 1 and 0)
+
+
+@pytest.mark.parametrize(
+    ("fmt", "change", "field"),
+    [
+        (
+            "rmpl-json",
+            lambda d: d["cameras"][0].update(R=[[True, False, False]] * 3),
+            "cameras[0].R",
+        ),
+        ("rmpl-json", lambda d: d["cameras"][1].update(t=[0.0, 0.0, True]), "cameras[1].t"),
+        ("shelf4d", lambda d: d["a"].update(imgSize=[640, True]), "a.imgSize"),
+        ("voxelpose", lambda d: d["b"].update(fx=True), "b.fx"),
+    ],
+)
+def test_booleans_are_not_numbers(tmp_path, fmt, change, field):
+    path = tmp_path / OUTPUT_NAMES[fmt]
+    _mutate_json(path, fmt, change)
+    assert "true/false" in str(_expect_error(path, field))

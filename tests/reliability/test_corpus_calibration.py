@@ -280,6 +280,10 @@ CASES = {
     "rmpl-toml inf in K": Case(
         _text("rmpl-toml", "c.toml", "[0.0, 0.0, 1.0]]", "[0.0, 0.0, inf]]"), "cameras[0].K"
     ),
+    "rmpl-toml R of booleans": Case(
+        _text("rmpl-toml", "c.toml", "R = [[1.0, 0.0, 0.0]", "R = [[true, false, false]"),
+        "cameras[0].R",
+    ),
     # anipose / Pose2Sim TOML
     "anipose missing rotation": Case(
         _text("anipose", "c.toml", "rotation = [0.0, 0.0, 0.0]\n", ""), "a.rotation"

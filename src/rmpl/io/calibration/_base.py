@@ -136,6 +136,10 @@ class Source:
         self, value: object, shape: tuple[int, ...], field: str, expected: str
     ) -> np.ndarray:
         """Finite floats of ``shape``; a vector may also come as one row or one column."""
+        if _has_bool(value):  # true/false would pass as 1/0
+            raise InputError(
+                self.path, field, f"{expected} (numbers, not true/false)", brief(value)
+            )
         try:
             a = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
@@ -210,6 +214,14 @@ class Source:
         if dupes:
             raise InputError(self.path, where, "unique camera names", f"repeated {dupes}")
         return Rig(tuple(cameras))
+
+
+def _has_bool(value: object) -> bool:
+    if isinstance(value, bool | np.bool_):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.dtype == bool or (value.dtype == object and _has_bool(value.tolist()))
+    return isinstance(value, list | tuple) and any(_has_bool(v) for v in value)
 
 
 def brief(value: object) -> str:
