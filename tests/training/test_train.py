@@ -220,3 +220,41 @@ def test_mhp_with_too_few_views_is_refused_at_start(poses, tmp_path):
         _training_source(cfg, poses[0])
     ok = TrainConfig.from_dict({"mhp": [str(tmp_path / "mhp")], "mhp_weight": 0.5, "max_views": 3})
     assert _training_source(ok, poses[0]).batch(4, 3).rays.shape == (4, 3, 17, 6)
+
+
+def _weights(run: Path) -> dict[str, torch.Tensor]:
+    model, _ = load_checkpoint(run)
+    return model.state_dict()
+
+
+def _without_time(log: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in log]
+
+
+def test_resumed_run_is_bit_identical_to_an_uninterrupted_one(poses, tmp_path, monkeypatch):
+    """A kill after a validation is logged and before its checkpoint: the resumed run has
+    the uninterrupted run's weights, bit for bit, and its log (no duplicate records)."""
+    from rmpl.training import loop
+
+    cfg = tiny_config(steps=8, val_every=2, model={"drop_path": 0.2})
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    train(cfg, whole, *poses)
+    real = loop.save_checkpoint
+    calls = []
+
+    def killed_at_the_third(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:  # step 6 is in log.jsonl, its checkpoint is not written
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop, "save_checkpoint", killed_at_the_third)
+    with pytest.raises(KeyboardInterrupt):
+        train(cfg, cut, *poses)
+    assert [r["step"] for r in read_log(cut)] == [2, 4, 6]
+    monkeypatch.setattr(loop, "save_checkpoint", real)
+    train(cfg, cut, *poses)
+    assert [r["step"] for r in read_log(cut)] == [2, 4, 6, 8]
+    assert _without_time(read_log(cut)) == _without_time(read_log(whole))
+    a, b = _weights(whole), _weights(cut)
+    assert all(torch.equal(a[k], b[k]) for k in a)

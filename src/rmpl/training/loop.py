@@ -293,28 +293,64 @@ def _lr_at(step: int, cfg: TrainConfig) -> float:
     return cfg.lr * f
 
 
-def train(
-    cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val: np.ndarray
-) -> Path:
-    """Train (or resume) a model into directory ``out``; returns ``out``."""
-    from tqdm import tqdm
+@dataclass
+class _Progress:
+    """What a resumed run continues from: the step, the time spent, the running loss."""
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    torch.set_num_threads(cfg.threads)
-    torch.manual_seed(cfg.seed)
-    model = build_model(cfg.model_config())
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    step: int = 0
+    elapsed: float = 0.0
+    running: float | None = None
+
+
+def _resume(out: Path, model, opt, src, rng_views, seed: int) -> _Progress:
+    """Restore the state of ``out/state.pt`` (model, optimizer, every RNG), and drop the log
+    records after it (a kill between a logged validation and its checkpoint)."""
     state_file = out / "state.pt"
-    step, elapsed = 0, 0.0
-    src = _training_source(cfg, poses_train)
+    progress = _Progress()
     if state_file.exists():
-        state = torch.load(state_file, weights_only=False)
+        try:
+            state = torch.load(state_file, weights_only=False)
+        except Exception as e:  # noqa: BLE001 - torch raises many kinds for a damaged file
+            raise InputError(
+                state_file, None, "a training state written by rmpl train", e
+            ) from None
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
-        step, elapsed = state["step"], state.get("elapsed", 0.0)
         src.rng.bit_generator.state = state["rng"]
-        log.info("resuming %s at step %d", out, step)
+        if "rng_views" in state:  # states before 0.1.1 re-seeded these (not bit-identical)
+            rng_views.bit_generator.state = state["rng_views"]
+            torch.set_rng_state(state["torch_rng"])
+        else:
+            rng_views.bit_generator.state = np.random.default_rng(
+                seed + state["step"]
+            ).bit_generator.state
+        progress = _Progress(state["step"], state.get("elapsed", 0.0), state.get("running"))
+        log.info("resuming %s at step %d", out, progress.step)
+    _truncate_log(out / "log.jsonl", progress.step)
+    return progress
+
+
+def _truncate_log(path: Path, step: int) -> None:
+    """Keep the records of steps up to ``step`` (the checkpoint a run resumes from)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines()
+    keep = []
+    for line in lines:
+        try:
+            record = json.loads(line)
+        except ValueError:  # a line cut by a kill
+            continue
+        if isinstance(record, dict) and record.get("step", math.inf) <= step:
+            keep.append(line)
+    if len(keep) != len(lines):
+        log.warning("%s: dropping %d records after step %d", path, len(lines) - len(keep), step)
+        with atomic_path(path) as tmp:
+            tmp.write_text("".join(line + "\n" for line in keep))
+
+
+def _validation(cfg: TrainConfig, poses_val: np.ndarray):
+    """The fixed validation batches (parametric and MHP) and triangulation's errors on them."""
     sets = validation_sets(poses_val, cfg)
     tri = {f"triangulation_kpstar_{v}v": _triangulation_mpjpe(b) for v, b in sets.items() if v > 1}
     mhp_sets = _mhp_validation_sets(cfg)
@@ -323,7 +359,69 @@ def train(
         for v, b in mhp_sets.items()
         if v > 1
     }
-    rng_views = np.random.default_rng(cfg.seed + step)
+    return sets, mhp_sets, tri
+
+
+def _num_views(cfg: TrainConfig, rng: np.random.Generator) -> int:
+    if cfg.min_views == 1 and rng.random() < cfg.single_view_rate:
+        return 1
+    return int(rng.integers(max(cfg.min_views, 2), cfg.max_views + 1))
+
+
+def _train_step(model, opt, b, cfg: TrainConfig, step: int, V: int) -> float:
+    """One optimizer step on batch ``b``; returns the loss (metres)."""
+    for g in opt.param_groups:
+        g["lr"] = _lr_at(step, cfg)
+    pred = forward_batch(model, b)
+    loss = (pred - torch.from_numpy(b.target)).norm(dim=-1).mean()
+    if not torch.isfinite(loss):
+        raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
+    opt.zero_grad(set_to_none=True)
+    (loss * (cfg.single_view_weight if V == 1 else 1.0)).backward()
+    torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+    opt.step()
+    return loss.item()
+
+
+def _save_state(out: Path, model, opt, src, rng_views, progress: _Progress) -> None:
+    with atomic_path(out / "state.pt") as tmp:
+        torch.save(
+            {
+                "model": model.state_dict(),
+                "optimizer": opt.state_dict(),
+                "step": progress.step,
+                "elapsed": progress.elapsed,
+                "running": progress.running,
+                "rng": src.rng.bit_generator.state,
+                "rng_views": rng_views.bit_generator.state,
+                "torch_rng": torch.get_rng_state(),
+            },
+            tmp,
+        )
+
+
+def train(
+    cfg: TrainConfig, out: str | Path, poses_train: np.ndarray, poses_val: np.ndarray
+) -> Path:
+    """Train (or resume) a model into directory ``out``; returns ``out``.
+
+    A resumed run is bit-identical to an uninterrupted one: the checkpoint state holds the
+    model, the optimizer and every random generator (the sources', the view count's and
+    torch's), and log records after the checkpoint (a kill between a logged validation and
+    its checkpoint) are dropped on resume.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    model = build_model(cfg.model_config())
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    src = _training_source(cfg, poses_train)
+    rng_views = np.random.default_rng(cfg.seed)
+    progress = _resume(out, model, opt, src, rng_views, cfg.seed)
+    sets, mhp_sets, tri = _validation(cfg, poses_val)
     summary = {
         "train_config": asdict(cfg),
         "train_poses": int(len(poses_train)),
@@ -331,65 +429,50 @@ def train(
         "parameters": model.num_parameters,
     }
     model.train()
-    t_start = time.time()
-    bar = tqdm(total=cfg.steps, initial=step, desc="train", unit="step", dynamic_ncols=True)
-    running = None
-    while step < cfg.steps:
-        if cfg.min_views == 1 and rng_views.random() < cfg.single_view_rate:
-            V = 1
-        else:
-            V = int(rng_views.integers(max(cfg.min_views, 2), cfg.max_views + 1))
-        b = src.batch(cfg.batch_size, V)
-        for g in opt.param_groups:
-            g["lr"] = _lr_at(step, cfg)
-        pred = forward_batch(model, b)
-        loss = (pred - torch.from_numpy(b.target)).norm(dim=-1).mean()
-        if not torch.isfinite(loss):
-            raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
-        opt.zero_grad(set_to_none=True)
-        (loss * (cfg.single_view_weight if V == 1 else 1.0)).backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
-        opt.step()
-        step += 1
+    t_start, start_elapsed = time.time(), progress.elapsed
+    bar = tqdm(
+        total=cfg.steps, initial=progress.step, desc="train", unit="step", dynamic_ncols=True
+    )
+    while progress.step < cfg.steps:
+        V = _num_views(cfg, rng_views)
+        loss = _train_step(model, opt, src.batch(cfg.batch_size, V), cfg, progress.step, V)
+        progress.step += 1
         if V > 1:  # the running loss follows the multi-view batches
-            running = loss.item() if running is None else 0.98 * running + 0.02 * loss.item()
+            r = progress.running
+            progress.running = loss if r is None else 0.98 * r + 0.02 * loss
         bar.update(1)
-        if running is not None:
-            bar.set_postfix(loss_mm=f"{running * 1000:.1f}", V=V)
+        if progress.running is not None:
+            bar.set_postfix(loss_mm=f"{progress.running * 1000:.1f}", V=V)
         over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
-        if step % cfg.val_every == 0 or step == cfg.steps or over_time:
-            metrics = evaluate_batches(model, sets)
-            metrics |= {f"mhp_{k}": v for k, v in evaluate_batches(model, mhp_sets).items()}
-            now = elapsed + time.time() - t_start
-            record = {
-                "step": step,
-                "seconds": round(now, 1),
-                "train_loss_mm": (running or math.nan) * 1000,
-                **metrics,
-                **tri,
-            }
-            with open(out / "log.jsonl", "a") as f:
-                f.write(json.dumps(record) + "\n")
-            bar.write(
-                f"step {step}: "
-                + " ".join(f"{k}={v:.1f}" for k, v in metrics.items() if "kpstar" in k)
-            )
+        if progress.step % cfg.val_every == 0 or progress.step == cfg.steps or over_time:
+            progress.elapsed = start_elapsed + time.time() - t_start
+            record = _validate(model, sets, mhp_sets, tri, progress, out / "log.jsonl", bar)
             save_checkpoint(model, out, {"training": {**summary, "last": record}})
-            with atomic_path(state_file) as tmp:
-                torch.save(
-                    {
-                        "model": model.state_dict(),
-                        "optimizer": opt.state_dict(),
-                        "step": step,
-                        "elapsed": now,
-                        "rng": src.rng.bit_generator.state,
-                    },
-                    tmp,
-                )
+            _save_state(out, model, opt, src, rng_views, progress)
             if over_time:
-                log.info("time limit reached at step %d; run again to resume", step)
+                log.info("time limit reached at step %d; run again to resume", progress.step)
                 break
     bar.close()
-    if math.isfinite(running or 0):
+    if math.isfinite(progress.running or 0):
         log.info("done: %s", out)
     return out
+
+
+def _validate(model, sets, mhp_sets, tri, progress: _Progress, log_file: Path, bar) -> dict:
+    """Evaluate, append the record to ``log_file`` and print its KP* errors."""
+    metrics = evaluate_batches(model, sets)
+    metrics |= {f"mhp_{k}": v for k, v in evaluate_batches(model, mhp_sets).items()}
+    record = {
+        "step": progress.step,
+        "seconds": round(progress.elapsed, 1),
+        "train_loss_mm": (progress.running or math.nan) * 1000,
+        **metrics,
+        **tri,
+    }
+    with open(log_file, "a") as f:
+        f.write(json.dumps(record) + "\n")
+    bar.write(
+        f"step {progress.step}: "
+        + " ".join(f"{k}={v:.1f}" for k, v in metrics.items() if "kpstar" in k)
+    )
+    return record
