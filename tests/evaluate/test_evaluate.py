@@ -12,16 +12,11 @@ import pytest
 
 from rmpl.cli import main
 from rmpl.errors import InputError
-from rmpl.evaluate.harness import (
-    EvalConfig,
-    evaluate,
-    load_eval_set,
-    make_method,
-    pose_metrics,
-    reprojection_check,
-    results_rows,
-    view_subsets,
-)
+from rmpl.evaluate.evalset import gt_coco, load_eval_set, reprojection_check
+from rmpl.evaluate.harness import EvalConfig, evaluate, evaluate_poses, view_subsets
+from rmpl.evaluate.methods import make_method
+from rmpl.evaluate.scoring import pose_metrics
+from rmpl.evaluate.tables import results_rows
 from rmpl.io.keypoints import Keypoints2D, save_keypoints
 from rmpl.synth.cameras import sphere_cameras
 from rmpl.synth.motion import PoseSet, save_pose_set
@@ -76,9 +71,7 @@ def test_loader_through_evaluate(
         assert part.gt.shape[0] == T and part.gt.shape[1] <= people
     # Units: metres. Upper-arm and thigh lengths of adults, wherever annotated.
     for part in evset.parts:
-        from rmpl.evaluate.harness import _gt_coco
-
-        X = _gt_coco(part)
+        X = gt_coco(part)
         for a, b in ((5, 7), (6, 8), (11, 13), (12, 14)):
             d = np.linalg.norm(X[..., a, :] - X[..., b, :], axis=-1)
             d = d[np.isfinite(d)]
@@ -550,13 +543,12 @@ def test_annotations_requested_where_there_are_none(shared_data, capsys):
 def test_score_finished_results(fixtures, tmp_path, capsys):
     """Results written by another run are matched by frame number and person; a shifted
     person scores exactly its shift, a ghost person is ignored, a missing one is missing."""
-    from rmpl.evaluate.harness import _gt_coco, evaluate_poses
     from rmpl.io.poses import Poses3D, save_poses
 
     root = fixtures / "shelf"
     evset = load_eval_set("shelf", root, two_d="annotations")
     part = evset.parts[0]
-    gt = _gt_coco(part)  # (T, P, 17, 3)
+    gt = gt_coco(part)  # (T, P, 17, 3)
     present = np.isfinite(gt).all(-1).any(-1)
     t0, p0 = np.argwhere(present)[0]
     shifted = gt.copy()

@@ -1,6 +1,16 @@
-"""Evaluation: benchmark protocols, synthetic experiments, held-out-view errors, tables, plots.
+"""Evaluation: methods compared on identical 2D input, scored, tabulated and plotted.
 
-``harness`` scores methods on a :class:`rmpl.data.base.MultiViewDataset`; ``synthetic`` builds
-scenes from motion capture or MHP renders; ``heldout`` predicts each camera from the others
-on recordings with no ground truth; ``plots`` draws the sweeps.
+The modules, in the order the data flows through them:
+
+- ``methods``: the compared methods, ``fn(keypoints, scores, rig) -> points``;
+- ``evalset``: a real dataset with 3D ground truth and the 2D input chosen for it;
+- ``harness``: every method on every view subset and condition (dropout, calibration
+  noise) of an evaluation set, or finished results matched to the ground truth;
+- ``synthetic`` / ``heldout``: the same for simulated scenes (random cameras, MHP renders,
+  the two-camera sphere) and for recordings without ground truth (held-out views);
+- ``scoring``: MPJPE, KP*, PA-MPJPE, PCK, coverage, PCP;
+- ``tables``: rows, Markdown, CSV, and the :class:`~rmpl.evaluate.tables.Report` of a run;
+- ``plots``: the PNG figures;
+- ``options``, ``protocols``, ``experiments``: the runs of ``rmpl evaluate`` (real
+  datasets and recordings; synthetic experiments), each ending in a report.
 """

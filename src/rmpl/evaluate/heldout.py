@@ -73,6 +73,31 @@ def heldout_view_errors(
     """
     from tqdm import tqdm
 
+    kp, sc = _checked(keypoints, scores, rig, sizes, min_score)
+    V = sc.shape[1]
+    sc = np.where(np.isfinite(kp).all(-1) & np.isfinite(sc), sc, 0.0)
+    jobs = [
+        (h, k, list(S))
+        for k in sizes
+        for h in range(V)
+        for S in itertools.combinations([v for v in range(V) if v != h], k)
+    ]
+    ev = HeldoutEvaluation(methods=list(methods))
+    acc_px: dict[int, dict[str, list]] = {k: {m: [] for m in methods} for k in sizes}
+    acc_mm: dict[int, dict[str, list]] = {k: {m: [] for m in methods} for k in sizes}
+    for h, k, S in tqdm(jobs, desc="held-out views", unit="subset", disable=not progress):
+        ev.subsets[k] = ev.subsets.get(k, 0) + 1
+        for m, (px, mm) in _subset_errors(kp, sc, rig, methods, h, S, min_score).items():
+            acc_px[k][m].append(px)
+            acc_mm[k][m].append(mm)
+    for k in sizes:
+        ev.px[k] = {m: _cat(acc_px[k][m]) for m in methods}
+        ev.mm[k] = {m: _cat(acc_mm[k][m]) for m in methods}
+    return ev
+
+
+def _checked(keypoints, scores, rig: Rig, sizes, min_score: float):
+    """keypoints (N, V, J, 2) and scores (N, V, J) as float arrays, after the checks."""
     kp = np.asarray(keypoints, float)
     sc = np.asarray(scores, float)
     if kp.ndim != 4 or kp.shape[-1] != 2 or sc.shape != kp.shape[:-1]:
@@ -87,44 +112,40 @@ def heldout_view_errors(
         raise ValueError(f"view counts must be in 1..{V - 1} (one view is held out), got {bad}")
     if not 0 < min_score <= 1:
         raise ValueError(f"min_score must be in (0, 1], got {min_score}")
-    sc = np.where(np.isfinite(kp).all(-1) & np.isfinite(sc), sc, 0.0)
-    jobs = [
-        (h, k, list(S))
-        for k in sizes
-        for h in range(V)
-        for S in itertools.combinations([v for v in range(V) if v != h], k)
-    ]
-    ev = HeldoutEvaluation(methods=list(methods))
-    acc_px: dict[int, dict[str, list]] = {k: {m: [] for m in methods} for k in sizes}
-    acc_mm: dict[int, dict[str, list]] = {k: {m: [] for m in methods} for k in sizes}
-    for h, k, S in tqdm(jobs, desc="held-out views", unit="subset", disable=not progress):
-        ev.subsets[k] = ev.subsets.get(k, 0) + 1
-        ref = (sc[:, h] > 0) & (sc[:, h] >= min_score)  # (N, J)
-        keep = ref.any(-1) & (sc[:, S] > 0).any((-1, -2))
-        if not keep.any():
-            continue
-        sub_kp, sub_sc, sub_rig = kp[keep][:, S], sc[keep][:, S], rig[S]
-        target, ref = kp[keep, h], ref[keep]
-        cam = rig[h]
-        focal = 0.5 * (cam.K[0, 0] + cam.K[1, 1])
-        preds = {m: np.asarray(fn(sub_kp, sub_sc, sub_rig), float) for m, fn in methods.items()}
-        n = int(keep.sum())
-        for m, X in preds.items():
-            if X.shape != (n, J, 3):
-                raise ValueError(f"method {m} returned {X.shape}, expected {(n, J, 3)}")
-            ok = np.isfinite(X).all(-1)
-            Xs = np.where(ok[..., None], X, 0.0)
-            uv = cam.project(Xs)
-            depth = Xs @ cam.R[2] + cam.t[2]
-            ok &= depth > 0
-            err = np.linalg.norm(uv - target, axis=-1)
-            err_mm = 1000.0 * err * depth / focal
-            acc_px[k][m].append(np.where(ok, err, np.nan)[ref])
-            acc_mm[k][m].append(np.where(ok, err_mm, np.nan)[ref])
-    for k in sizes:
-        ev.px[k] = {m: _cat(acc_px[k][m]) for m in methods}
-        ev.mm[k] = {m: _cat(acc_mm[k][m]) for m in methods}
-    return ev
+    return kp, sc
+
+
+def _subset_errors(kp, sc, rig: Rig, methods, h: int, S: list[int], min_score: float):
+    """Errors in held-out view ``h`` of every method estimating from views ``S``.
+
+    Returns:
+        name -> (pixel errors, millimetre errors), flat over the confident detections of
+        ``h`` (NaN where the method gave no estimate); {} when nothing is scored.
+    """
+    J = sc.shape[-1]
+    ref = (sc[:, h] > 0) & (sc[:, h] >= min_score)  # (N, J)
+    keep = ref.any(-1) & (sc[:, S] > 0).any((-1, -2))
+    if not keep.any():
+        return {}
+    sub_kp, sub_sc, sub_rig = kp[keep][:, S], sc[keep][:, S], rig[S]
+    target, ref = kp[keep, h], ref[keep]
+    cam = rig[h]
+    focal = 0.5 * (cam.K[0, 0] + cam.K[1, 1])
+    preds = {m: np.asarray(fn(sub_kp, sub_sc, sub_rig), float) for m, fn in methods.items()}
+    n = int(keep.sum())
+    out = {}
+    for m, X in preds.items():
+        if X.shape != (n, J, 3):
+            raise ValueError(f"method {m} returned {X.shape}, expected {(n, J, 3)}")
+        ok = np.isfinite(X).all(-1)
+        Xs = np.where(ok[..., None], X, 0.0)
+        uv = cam.project(Xs)
+        depth = Xs @ cam.R[2] + cam.t[2]
+        ok &= depth > 0
+        err = np.linalg.norm(uv - target, axis=-1)
+        err_mm = 1000.0 * err * depth / focal
+        out[m] = (np.where(ok, err, np.nan)[ref], np.where(ok, err_mm, np.nan)[ref])
+    return out
 
 
 def _cat(parts: list[np.ndarray]) -> np.ndarray:

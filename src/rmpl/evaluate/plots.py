@@ -1,7 +1,9 @@
 """PNG plots of ``rmpl evaluate`` results (matplotlib, Agg backend, atomic writes).
 
-Every function takes already computed numbers (errors in millimetres) and a path, and
-writes one figure. No plot is written partially: the file appears only when complete.
+The figure functions (:func:`joint_boxplot`, :func:`joint_bars`, :func:`sweep_plot`) take
+already computed numbers (errors in millimetres) and a path, and write one figure; the
+``*_plots`` functions choose the figures of one kind of run. No plot is written partially:
+the file appears only when complete.
 """
 
 from __future__ import annotations
@@ -12,7 +14,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["joint_boxplot", "joint_bars", "sweep_plot"]
+__all__ = [
+    "benchmark_plots",
+    "joint_bars",
+    "joint_boxplot",
+    "sphere_plots",
+    "sweep_plot",
+    "synthetic_plots",
+]
 
 log = logging.getLogger(__name__)
 
@@ -147,3 +156,162 @@ def sweep_plot(
     ax.legend(fontsize=8)
     fig.tight_layout()
     _save(fig, path)
+
+
+# --------------------------------------------------------------------------- figure sets
+
+
+def _mean_by_joint(errors: dict[str, dict[str, dict[str, np.ndarray]]]):
+    """view label -> method -> joint -> mean error (mm), NaN where there is none."""
+    return {
+        label: {
+            m: {j: float(e.mean()) if e.size else np.nan for j, e in d.items()}
+            for m, d in per.items()
+        }
+        for label, per in errors.items()
+    }
+
+
+def _curves(rows: list[dict], keys, x: str, select) -> dict[str, tuple[list, list]]:
+    """Legend label -> (x values, MPJPE) of the rows ``select(row, *key)`` keeps."""
+    curves = {}
+    for label, key in keys.items():
+        sel = [r for r in rows if select(r, *key)]
+        curves[label] = ([r[x] for r in sel], [r["mpjpe"] for r in sel])
+    return curves
+
+
+def benchmark_plots(out: Path, ev) -> None:
+    """The figures of a real-dataset :class:`rmpl.evaluate.harness.Evaluation`: per-joint
+    boxes and bars, and MPJPE against dropout, calibration noise and the number of views."""
+    from rmpl.evaluate.scoring import joint_errors_mm
+    from rmpl.evaluate.tables import results_rows
+
+    cfg, name = ev.config, ev.evset.name
+    errors = {
+        label: {m: joint_errors_mm(ev, label, 0, m) for m in ev.methods} for label in ev.view_sets
+    }
+    title = f"{name}, per-joint error"
+    joint_boxplot(errors, out / "joint_errors_box.png", title)
+    joint_bars(_mean_by_joint(errors), out / "joint_mpjpe_bar.png", title.replace("error", "MPJPE"))
+    rows = results_rows(ev)
+    pairs = {f"{m} | {label}": (label, m) for label in ev.view_sets for m in ev.methods}
+    if len(cfg.dropout) > 1:
+        curves = _curves(
+            rows,
+            pairs,
+            "dropout",
+            lambda r, v, m: r["views"] == v and r["method"] == m and r["calib_noise"] == "none",
+        )
+        sweep_plot(
+            curves,
+            out / "dropout.png",
+            "keypoint dropout probability p",
+            title=f"{name}: MPJPE vs keypoint dropout",
+        )
+    if cfg.calib_noise is not None:
+        _calib_plot(out, rows, pairs, cfg, name)
+    counts = [label for label in ev.view_sets if label.split()[0].isdigit()]
+    if len(counts) > 1:
+        _views_plot(out, rows, ev.methods, counts, cfg, name)
+
+
+def _calib_plot(out: Path, rows, pairs, cfg, name: str) -> None:
+    curves = _curves(
+        rows,
+        pairs,
+        "dropout",
+        lambda r, v, m: r["views"] == v and r["method"] == m and r["dropout"] == cfg.dropout[0],
+    )
+    curves = {k: ([0, 1], y) for k, (_, y) in curves.items()}
+    deg, mm = cfg.calib_noise[0], 1000 * cfg.calib_noise[1]
+    sweep_plot(
+        curves,
+        out / "calib_noise.png",
+        f"calibration noise (0 = none, 1 = {deg:g} deg / {mm:g} mm)",
+        title=f"{name}: MPJPE with calibration noise",
+    )
+
+
+def _views_plot(out: Path, rows, methods, counts, cfg, name: str) -> None:
+    curves = _curves(
+        rows,
+        {m: (m,) for m in methods},
+        "views",
+        lambda r, m: (
+            r["method"] == m
+            and r["views"] in counts
+            and r["dropout"] == cfg.dropout[0]
+            and r["calib_noise"] == "none"
+        ),
+    )
+    curves = {k: ([int(v.split()[0]) for v in x], y) for k, (x, y) in curves.items()}
+    sweep_plot(
+        curves,
+        out / "views.png",
+        "number of views",
+        title=f"{name}: MPJPE vs number of views",
+    )
+
+
+def synthetic_plots(out: Path, rows: list[dict], errors, dropout: tuple[float, ...]) -> None:
+    """The figures of a synthetic run: per-joint boxes and bars (``errors``: view label ->
+    method -> joint -> errors, mm), MPJPE against dropout and the number of views."""
+    joint_boxplot(errors, out / "joint_errors_box.png", "synthetic, per-joint error")
+    joint_bars(_mean_by_joint(errors), out / "joint_mpjpe_bar.png", "synthetic, per-joint MPJPE")
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    counts = list(dict.fromkeys(r["views"] for r in rows))
+    if len(dropout) > 1:
+        pairs = {f"{m} | {v} views": (m, v) for m in methods for v in counts}
+        curves = _curves(
+            rows,
+            pairs,
+            "dropout",
+            lambda r, m, v: r["method"] == m and r["views"] == v and r["calib_noise"] == "none",
+        )
+        sweep_plot(
+            curves,
+            out / "dropout.png",
+            "keypoint dropout probability p",
+            title="synthetic: MPJPE vs keypoint dropout",
+        )
+    if len(counts) > 1:
+        curves = _curves(
+            rows,
+            {m: (m,) for m in methods},
+            "views",
+            lambda r, m: (
+                r["method"] == m and r["dropout"] == dropout[0] and r["calib_noise"] == "none"
+            ),
+        )
+        sweep_plot(
+            curves,
+            out / "views.png",
+            "number of views",
+            title="synthetic: MPJPE vs number of views",
+        )
+
+
+def sphere_plots(out: Path, rows: list[dict], heights, angles, methods, radius: float) -> None:
+    """The figures of the two-camera sphere sweep: MPJPE against the angle per method and
+    height, on all joints and on the joints every method estimated."""
+
+    def at(key: str, h: float, a: float, m: str) -> float:
+        return next(
+            x[key] for x in rows if x["height"] == h and x["angle"] == a and x["method"] == m
+        )
+
+    for key, path, title in (
+        ("mpjpe", "sphere.png", f"two cameras on a {radius:g} m sphere: MPJPE vs angle"),
+        (
+            "mpjpe_common",
+            "sphere_common_joints.png",
+            "MPJPE vs angle on the joints every method estimated",
+        ),
+    ):
+        curves = {
+            f"{m} | {h:g} m": (angles, [at(key, h, a, m) for a in angles])
+            for h in heights
+            for m in methods
+        }
+        sweep_plot(curves, out / path, "horizontal angle between the cameras (deg)", title=title)

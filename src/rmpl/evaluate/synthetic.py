@@ -51,7 +51,7 @@ def _dropout(kp, sc, p: float, rng: np.random.Generator):
 
 
 def _row(pred: np.ndarray, target: np.ndarray, pck: float) -> dict[str, float]:
-    from rmpl.evaluate.harness import pose_metrics
+    from rmpl.evaluate.scoring import pose_metrics
 
     m = pose_metrics(pred, target, ALL_JOINTS, pck)
     return {k: m[k] for k in ("mpjpe", "kpstar", "coverage", "pa_mpjpe", "pck")}
@@ -87,7 +87,7 @@ def evaluate_synthetic(
     Args:
         poses: held-out COCO-17 poses, shape (N, 17, 3), metres, z up (ignored with
             ``shards``).
-        methods: name -> method (see :func:`rmpl.evaluate.harness.make_method`).
+        methods: name -> method (see :func:`rmpl.evaluate.methods.make_method`).
         view_counts: numbers of cameras per scene.
         samples: scenes per view count (and condition).
         seed: seed of the scenes, the 2D noise, the dropout masks and calibration noise.
@@ -113,28 +113,8 @@ def evaluate_synthetic(
     jobs = [(v, p, c) for v in view_counts for c in calibs for p in dropout]
     rows = []
     for ji, (v, p, calib) in enumerate(tqdm(jobs, desc="synthetic", disable=not progress)):
-        results: dict[str, list] = {m: [] for m in methods}
         reps = calib_reps if calib is not None else 1
-        for r in range(reps):
-            # The same scenes for every condition of one view count (seeded by v and rep).
-            if shards is not None:
-                src = ShardSource(shards, drop_rate=0.0, augment=False, seed=[seed, v, r])
-            else:
-                src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=[seed, v, r])
-            batch = src.batch(samples, v, train=False)
-            rng = np.random.default_rng([seed, 99, ji, r])
-            kp, sc = _dropout(batch.keypoints, batch.scores.astype(float), p, rng)
-            R, t = batch.R, batch.t
-            if calib is not None:
-                R, t = perturb_extrinsics(R, t, calib[0], calib[1], rng)
-            target = batch.target.astype(float)
-            for name, method in methods.items():
-                pred = _per_scene(method, kp, sc, batch.K, R, t)
-                results[name].append((pred, target))
-        merged = {
-            name: (np.concatenate([a for a, _ in pairs]), np.concatenate([b for _, b in pairs]))
-            for name, pairs in results.items()
-        }
+        merged = _run_condition(poses, shards, methods, samples, seed, ji, v, p, calib, reps)
         common = _common({n: a for n, (a, _) in merged.items()})
         for name, (pred, target) in merged.items():
             if predictions is not None:
@@ -147,6 +127,35 @@ def evaluate_synthetic(
             )
             rows.append(row)
     return rows
+
+
+def _run_condition(poses, shards, methods, samples, seed, ji, v, p, calib, reps):
+    """Every method on the scenes of one view count and condition, ``reps`` draws.
+
+    Returns:
+        name -> (predictions, targets), each (B, 17, 3) metres over every draw.
+    """
+    results: dict[str, list] = {m: [] for m in methods}
+    for r in range(reps):
+        # The same scenes for every condition of one view count (seeded by v and rep).
+        if shards is not None:
+            src = ShardSource(shards, drop_rate=0.0, augment=False, seed=[seed, v, r])
+        else:
+            src = PairSource(poses, SamplerConfig(drop_rate=0.0), seed=[seed, v, r])
+        batch = src.batch(samples, v, train=False)
+        rng = np.random.default_rng([seed, 99, ji, r])
+        kp, sc = _dropout(batch.keypoints, batch.scores.astype(float), p, rng)
+        R, t = batch.R, batch.t
+        if calib is not None:
+            R, t = perturb_extrinsics(R, t, calib[0], calib[1], rng)
+        target = batch.target.astype(float)
+        for name, method in methods.items():
+            pred = _per_scene(method, kp, sc, batch.K, R, t)
+            results[name].append((pred, target))
+    return {
+        name: (np.concatenate([a for a, _ in pairs]), np.concatenate([b for _, b in pairs]))
+        for name, pairs in results.items()
+    }
 
 
 def evaluate_sphere(

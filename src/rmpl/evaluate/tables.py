@@ -1,0 +1,391 @@
+"""Tables of an evaluation: rows (one dict per setting), Markdown and CSV.
+
+Rows hold millimetres and percent; :func:`markdown_table` prints them with one decimal and
+an em dash for NaN, :func:`write_csv` with four. :func:`benchmark_files` makes every table
+of a real-dataset run (results.md, results.csv, per_joint.csv, per_person.csv or
+per_clip.csv) and :func:`write_files` writes them atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.evaluate.harness import Evaluation
+from rmpl.evaluate.scoring import (
+    common_mask,
+    condition_label,
+    mean_finite,
+    pcp_actors,
+    pcp_by_actor,
+    pose_metrics,
+)
+from rmpl.io.atomic import atomic_path
+from rmpl.skeleton import COCO17
+
+__all__ = [
+    "COLUMN_TITLES",
+    "Report",
+    "save_report",
+    "benchmark_files",
+    "fmt",
+    "header_lines",
+    "markdown_table",
+    "per_group_rows",
+    "per_joint_rows",
+    "results_rows",
+    "sweep_table",
+    "write_csv",
+    "write_files",
+    "write_text",
+]
+
+log = logging.getLogger(__name__)
+
+# --------------------------------------------------------------------------- rows
+
+
+def _common_mpjpe(ev: Evaluation, label: str, ci: int, entries: list[np.ndarray]) -> float:
+    """MPJPE (mm) on the joints every method estimated, averaged over the subsets."""
+    common = []
+    for k, pred in enumerate(entries):
+        mask = common_mask(ev, label, ci, k)[:, ev.joints]
+        e = np.linalg.norm(pred[:, ev.joints] - ev.gt[:, ev.joints], axis=-1)
+        common.append(1000 * e[mask].mean() if mask.any() else np.nan)
+    return mean_finite(common)
+
+
+def _pcp_cells(ev: Evaluation, entries: list[np.ndarray]) -> dict[str, float]:
+    """pcp_actor1.. and pcp_mean (%), averaged over the subsets."""
+    actors = pcp_actors(ev)
+    pcps = [pcp_by_actor(pred, ev.native, ev.person) for pred in entries]
+    row = {f"pcp_{a.replace(' ', '')}": mean_finite(x.get(a, np.nan) for x in pcps) for a in actors}
+    row["pcp_mean"] = mean_finite(row.values()) if actors else np.nan
+    return row
+
+
+def results_rows(ev: Evaluation) -> list[dict]:
+    """One row per view setting, condition and method (metrics averaged over subsets)."""
+    rows = []
+    conds = ev.config.conditions()
+    for label in ev.view_sets:
+        for ci, (p, calib) in enumerate(conds):
+            for m in ev.methods:
+                entries = ev.preds[label, ci, m]
+                per = [
+                    pose_metrics(pred, ev.gt, ev.joints, ev.config.pck_threshold)
+                    for pred in entries
+                ]
+                row = {"views": label, "method": m}
+                row["mpjpe"] = mean_finite(r["mpjpe"] for r in per)
+                row["coverage"] = mean_finite(r["coverage"] for r in per)
+                for key in ("kpstar", "pa_mpjpe", "pck"):
+                    row[key] = mean_finite(r[key] for r in per)
+                row["mpjpe_common"] = _common_mpjpe(ev, label, ci, entries)
+                if ev.evset.pcp:
+                    row |= _pcp_cells(ev, entries)
+                row["dropout"], row["calib_noise"] = condition_label(p, calib)
+                rows.append(row)
+    return rows
+
+
+def per_joint_rows(ev: Evaluation) -> list[dict]:
+    """MPJPE and coverage per joint, view setting, condition and method."""
+    rows = []
+    for label in ev.view_sets:
+        for ci, (p, calib) in enumerate(ev.config.conditions()):
+            for m in ev.methods:
+                entries = ev.preds[label, ci, m]
+                for j in ev.joints:
+                    per = [pose_metrics(x, ev.gt, [j], ev.config.pck_threshold) for x in entries]
+                    d, c = condition_label(p, calib)
+                    rows.append(
+                        {
+                            "views": label,
+                            "method": m,
+                            "joint": COCO17.joints[j],
+                            "mpjpe": mean_finite(r["mpjpe"] for r in per),
+                            "coverage": mean_finite(r["coverage"] for r in per),
+                            "pck": mean_finite(r["pck"] for r in per),
+                            "dropout": d,
+                            "calib_noise": c,
+                        }
+                    )
+    return rows
+
+
+def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
+    """Metrics per person ("person") or clip ("clip"), view setting, condition and method."""
+    groups = ev.person if by == "person" else ev.clip
+    rows = []
+    for label in ev.view_sets:
+        for ci, (p, calib) in enumerate(ev.config.conditions()):
+            for m in ev.methods:
+                entries = ev.preds[label, ci, m]
+                for gname in np.unique(groups):
+                    sel = groups == gname
+                    per = [
+                        pose_metrics(x[sel], ev.gt[sel], ev.joints, ev.config.pck_threshold)
+                        for x in entries
+                    ]
+                    row = {"views": label, "method": m, by: str(gname), "poses": int(sel.sum())}
+                    for key in ("mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"):
+                        row[key] = mean_finite(r[key] for r in per)
+                    if ev.evset.pcp:
+                        row["pcp"] = mean_finite(
+                            pcp_by_actor(x[sel], ev.native[sel], ev.person[sel]).get(
+                                str(gname), np.nan
+                            )
+                            if by == "person"
+                            else np.nan
+                            for x in entries
+                        )
+                    row["dropout"], row["calib_noise"] = condition_label(p, calib)
+                    rows.append(row)
+    return rows
+
+
+# --------------------------------------------------------------------------- text
+
+
+def fmt(x: float) -> str:
+    """A table cell: one decimal, an em dash for NaN."""
+    if isinstance(x, str | int | np.integer):
+        return str(x)
+    return "—" if not np.isfinite(x) else f"{x:.1f}"
+
+
+COLUMN_TITLES = {
+    "views": "views",
+    "method": "method",
+    "mpjpe": "MPJPE (mm)",
+    "coverage": "coverage (%)",
+    "kpstar": "KP* MPJPE (mm)",
+    "pa_mpjpe": "PA-MPJPE (mm)",
+    "pck": "PCK@{pck} (%)",
+    "mpjpe_common": "MPJPE common joints (mm)",
+    "pcp_mean": "PCP mean (%)",
+    "dropout": "dropout p",
+    "calib_noise": "calib. noise",
+    "joint": "joint",
+    "person": "person",
+    "clip": "clip",
+    "poses": "poses",
+    "pcp": "PCP (%)",
+    "height": "camera height (m)",
+    "angle": "angle (deg)",
+}
+
+
+def markdown_table(rows: list[dict], columns: list[str], pck_mm: float = 150) -> str:
+    """Rows as a Markdown table of the given columns (numbers right-aligned)."""
+    titles = []
+    for c in columns:
+        t = COLUMN_TITLES.get(c) or (
+            f"PCP {c[4:].replace('actor', 'actor ')} (%)" if c.startswith("pcp_") else c
+        )
+        titles.append(t.replace("{pck}", f"{pck_mm:g}mm"))
+    text = ["| " + " | ".join(titles) + " |"]
+    text.append(
+        "|"
+        + "|".join(
+            "---" if c in ("views", "method", "joint", "person", "clip") else "---:"
+            for c in columns
+        )
+        + "|"
+    )
+    for r in rows:
+        text.append("| " + " | ".join(fmt(r.get(c, np.nan)) for c in columns) + " |")
+    return "\n".join(text) + "\n"
+
+
+def header_lines(ev: Evaluation) -> list[str]:
+    """What was evaluated and how: dataset, 2D source, protocol, joints, perturbations."""
+    es, cfg = ev.evset, ev.config
+    frames = sum(len(p) for p in es.parts)
+    lines = [
+        f"- dataset: {es.name} ({', '.join(p.name for p in es.parts)}; {frames} frames, "
+        f"{es.num_views} cameras, {len(ev.gt)} annotated poses)",
+        f"- {es.source}",
+        f"- scored: {ev.scored}" if ev.scored else f"- association protocol: {es.protocol_text}",
+        "- scored joints (COCO-17 names the ground truth defines): "
+        + ", ".join(COCO17.joints[j] for j in ev.joints),
+        f"- PCK threshold {1000 * cfg.pck_threshold:g} mm (a missing joint is wrong); "
+        "MPJPE / PA-MPJPE leave missing joints out (see coverage); metrics are averaged "
+        "over the view subsets of a setting",
+    ]
+    if es.pcp:
+        lines.append(
+            "- PCP: Shelf/Campus convention (a part is correct when the mean of its end-point "
+            "errors is at most half its length), ten parts (head, arms, legs, torso to the "
+            "mid-hip), actors 1-3; the predicted neck and head top are derived from COCO-17"
+        )
+        ears = [COCO17.index("left_ear"), COCO17.index("right_ear")]
+        if not any((p.scores[..., ears] > 0).any() for p in es.parts):
+            lines.append(
+                "- the 2D has no ears, so the predicted neck and head top (derived from them) "
+                "are missing: the head and torso parts count as wrong (PCP at most 80%)"
+            )
+    med, p90, n = ev.reprojection
+    if n:
+        lines.append(
+            f"- ground truth projected onto the 2D input: median {med:.1f} px, 90th percentile "
+            f"{p90:.1f} px over {n} person-views (nearest 2D person)"
+        )
+    if any(p > 0 for p in cfg.dropout):
+        lines.append(
+            "- keypoint dropout: each keypoint of the per-person input removed with "
+            f"probability p (after association), seed {cfg.seed}"
+        )
+    if cfg.calib_noise is not None:
+        deg, m = cfg.calib_noise
+        lines.append(
+            f"- calibration noise: extrinsics rotated by N(0, {deg:g} deg) and camera centres "
+            f"moved by N(0, {1000 * m:g} mm) per camera, given to the methods (association "
+            f"uses the true rig); mean of {cfg.calib_reps} draws, seed {cfg.seed}"
+        )
+    lines += [f"- {n}" for n in es.notes]
+    return lines
+
+
+def write_csv(path: Path, rows: list[dict]) -> None:
+    """Rows to CSV atomically (the union of their keys, in first-seen order)."""
+    import csv
+    import io
+
+    keys: list[str] = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=keys)
+    writer.writeheader()
+    for r in rows:
+        writer.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in r.items()})
+    with atomic_path(path) as tmp:
+        tmp.write_text(buf.getvalue())
+
+
+def write_text(path: Path, text: str) -> None:
+    """Text to a file atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_files(out: Path, files: dict[str, object]) -> None:
+    """File name -> text (str), JSON (dict) or CSV rows (list of dicts), into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    for name, content in files.items():
+        if isinstance(content, str):
+            write_text(out / name, content)
+        elif isinstance(content, dict):
+            write_text(out / name, json.dumps(content, indent=1, default=float))
+        else:
+            write_csv(out / name, content)
+
+
+@dataclass
+class Report:
+    """What one ``rmpl evaluate`` run shows and writes.
+
+    Attributes:
+        text: results.md, also what the command prints.
+        files: file name -> text (str), JSON (dict) or CSV rows (list of dicts).
+        plot: draws the figures into a folder, or None.
+        log_files: log "wrote ... into ..." once the files are written.
+    """
+
+    text: str
+    files: dict[str, object] = field(default_factory=dict)
+    plot: Callable[[Path], None] | None = None
+    log_files: bool = True
+
+
+def save_report(out: Path, report: Report, plots: bool = True) -> None:
+    """Write a report's files into ``out`` (atomically, each), then its figures."""
+    write_files(out, report.files)
+    if plots and report.plot is not None:
+        report.plot(out)
+    if report.log_files:
+        log.info("wrote %s into %s", ", ".join(report.files), out)
+
+
+# --------------------------------------------------------------------------- a benchmark run
+
+
+def sweep_table(rows: list[dict], dropout: tuple[float, ...], calib_noise) -> str:
+    """MPJPE with one column per condition (dropout p / calibration noise)."""
+    conds = list(dict.fromkeys((r["dropout"], r["calib_noise"]) for r in rows))
+    title = [
+        (f"p={d:g}" if len(dropout) > 1 else "")
+        + (" " if len(dropout) > 1 and calib_noise else "")
+        + (("calib " + c) if calib_noise is not None else "")
+        for d, c in conds
+    ]
+    lines = ["| views | method | " + " | ".join(title) + " |"]
+    lines.append("|---|---|" + "---:|" * len(conds))
+    for key in dict.fromkeys((r["views"], r["method"]) for r in rows):
+        vals = {
+            (x["dropout"], x["calib_noise"]): x["mpjpe"]
+            for x in rows
+            if (x["views"], x["method"]) == key
+        }
+        cells = [f"{vals[c]:.1f}" if np.isfinite(vals.get(c, np.nan)) else "—" for c in conds]
+        lines.append(f"| {key[0]} | {key[1]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def _results_columns(ev: Evaluation, rows: list[dict]) -> list[str]:
+    cfg = ev.config
+    cols = ["views", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage", "mpjpe_common"]
+    if ev.evset.pcp:
+        cols += [k for k in rows[0] if k.startswith("pcp_actor")] + ["pcp_mean"]
+    if len(cfg.dropout) > 1:
+        cols.insert(2, "dropout")
+    if cfg.calib_noise is not None:
+        cols.insert(2, "calib_noise")
+    return cols
+
+
+def _group_section(ev: Evaluation, by: str, groups: list[dict]) -> list[str]:
+    """The per-person (or per-clip) table of the clean condition, with its title."""
+    cfg = ev.config
+    clean = [r for r in groups if r["dropout"] == cfg.dropout[0] and r["calib_noise"] == "none"]
+    gcols = ["views", "method", by, "poses", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"]
+    if ev.evset.pcp and by == "person":
+        gcols.append("pcp")
+    title = (
+        f"Per {'action/clip' if by == 'clip' else 'person'}"
+        f" (dropout {cfg.dropout[0]:g}, no calibration noise):"
+    )
+    return ["", title, "", markdown_table(clean, gcols, 1000 * cfg.pck_threshold)]
+
+
+def benchmark_files(ev: Evaluation, command: str) -> dict[str, object]:
+    """File name -> text or CSV rows: every table of a real-dataset evaluation.
+
+    Args:
+        ev: the evaluation.
+        command: the command line that reproduces it, quoted in results.md.
+    """
+    cfg = ev.config
+    rows = results_rows(ev)
+    text = [f"# rmpl evaluate: {ev.evset.name}", "", f"`{command}`", ""]
+    text += header_lines(ev) + [""]
+    text.append(markdown_table(rows, _results_columns(ev, rows), 1000 * cfg.pck_threshold))
+    if len(cfg.dropout) > 1 or cfg.calib_noise is not None:
+        text += ["", "Sweep (MPJPE, mm):", ""]
+        text.append(sweep_table(rows, cfg.dropout, cfg.calib_noise))
+    by = "clip" if ev.evset.name == "h36m" else "person"
+    groups = per_group_rows(ev, by)
+    text += _group_section(ev, by, groups)
+    return {
+        "results.md": "\n".join(text),
+        "results.csv": rows,
+        "per_joint.csv": per_joint_rows(ev),
+        f"per_{by}.csv": groups,
+    }
