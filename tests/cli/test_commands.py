@@ -210,3 +210,89 @@ def test_unknown_model_name(tmp_path, capsys):
     )
     assert code == 2
     assert "no-such-model" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- filesystem errors
+
+
+def _command(name: str, tmp_path, out: str) -> list[str]:
+    make_scene(tmp_path)
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    return {
+        "triangulate": ["triangulate", *io, "--out", out],
+        "lift": ["lift", *io, "--out", out, "--model", "default"],
+        "run": ["run", *io, "--out", out, "--method", "triangulate", "--no-pictures"],
+        "example": ["example", "--out", out],
+    }[name]
+
+
+def _one_line_error(capsys, *words: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+@pytest.mark.parametrize("name", ["triangulate", "lift", "run", "example"])
+def test_output_under_a_regular_file(tmp_path, capsys, name):
+    (tmp_path / "blocker").write_text("a file")
+    out = tmp_path / "blocker" / ("poses.json" if name in ("triangulate", "lift") else "res")
+    assert main(_command(name, tmp_path, str(out))) == 2
+    _one_line_error(capsys, str(tmp_path / "blocker"), "expected")
+
+
+@pytest.mark.parametrize("name", ["triangulate", "lift"])
+def test_output_file_that_is_a_directory(tmp_path, capsys, name):
+    (tmp_path / "out.json").mkdir()
+    assert main(_command(name, tmp_path, str(tmp_path / "out.json"))) == 2
+    _one_line_error(capsys, "out.json", "expected an output file path")
+
+
+@pytest.mark.parametrize("name", ["run", "example"])
+def test_output_folder_that_is_a_regular_file(tmp_path, capsys, name):
+    (tmp_path / "res").write_text("a file")
+    assert main(_command(name, tmp_path, str(tmp_path / "res"))) == 2
+    _one_line_error(capsys, "res", "expected an output folder")
+
+
+@pytest.mark.parametrize("name", ["triangulate", "run"])
+def test_unwritable_output_folder(tmp_path, capsys, monkeypatch, name):
+    # The tests may run as root, who writes anywhere: the folder refuses writes instead.
+    import rmpl.io.atomic as atomic
+
+    def locked(path, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(path))
+
+    out = str(tmp_path / ("o.json" if name == "triangulate" else "res"))
+    args = _command(name, tmp_path, out)
+    monkeypatch.setattr(atomic.Path, "touch", locked)
+    assert main(args) == 2
+    _one_line_error(capsys, "Permission denied", "expected a path you may read")
+
+
+@pytest.mark.parametrize(
+    "damage", ["garbage", "truncated", "wrong_tensors", "bad_config", "no_weights"]
+)
+def test_corrupt_model_checkpoint(tmp_path, capsys, tiny_model, damage):
+    from pathlib import Path
+
+    model = Path(tiny_model)
+    weights = model / "model.safetensors"
+    if damage == "garbage":
+        weights.write_bytes(b"\x00not safetensors at all" * 10)
+    elif damage == "truncated":
+        weights.write_bytes(weights.read_bytes()[:1000])
+    elif damage == "wrong_tensors":
+        torch.manual_seed(0)
+        save_checkpoint(RMPL(PRESETS["small"]), tmp_path / "other")
+        weights.write_bytes((tmp_path / "other" / "model.safetensors").read_bytes())
+    elif damage == "bad_config":
+        (model / "config.json").write_text("{not json")
+    else:
+        weights.unlink()
+    args = _command("lift", tmp_path, str(tmp_path / "o.json"))
+    args[args.index("--model") + 1] = tiny_model
+    assert main(args) == 2
+    name = "config.json" if damage == "bad_config" else "model.safetensors"
+    _one_line_error(capsys, name, "expected")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import logging
 import sys
@@ -51,16 +52,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: What a path had to be, by the error the operating system gave for it.
+_EXPECTED = {
+    errno.EACCES: "a path you may read (input) or write (output)",
+    errno.EPERM: "a path you may read (input) or write (output)",
+    errno.EISDIR: "a file, not a directory",
+    errno.ENOTDIR: "a folder (a part of this path is a regular file)",
+    errno.EEXIST: "a folder, or nothing (a regular file is in the way)",
+    errno.ENOENT: "an existing file or folder",
+    errno.ENOSPC: "free space on the disk",
+    errno.EROFS: "a writable file system",
+    errno.ENAMETOOLONG: "a shorter path",
+}
+
+
+def os_error_message(e: OSError) -> str:
+    """One line naming the path and what it had to be: ``out/x: expected a folder, got ...``."""
+    if e.filename is None:
+        return str(e)
+    path = e.filename
+    if e.filename2 is not None:
+        path = f"{e.filename} -> {e.filename2}"
+    expected = _EXPECTED.get(e.errno or -1, "a usable path")
+    return str(InputError(path, None, expected, e.strerror or type(e).__name__))
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 success, 2 bad input)."""
+    """Run the CLI; returns the exit code: 0 success, 2 bad input (an option, a file, a
+    filesystem error, or a result with nothing estimated), one line on stderr."""
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s")
     try:
         return int(args.run(args) or 0)
-    except (InputError, FileNotFoundError, ValueError) as e:
-        print(f"rmpl {args.command}: error: {e}", file=sys.stderr)
-        return 2
+    except (InputError, ValueError) as e:
+        message = str(e)
+    except OSError as e:  # an output under a regular file, a locked folder, a full disk, ...
+        message = os_error_message(e)
+    print(f"rmpl {args.command}: error: {message}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":

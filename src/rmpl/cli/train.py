@@ -58,4 +58,6 @@ def load_poses(path: str):
         return load_pose_set(p)
     if p.is_dir():
         return load_motion_dir(p)
-    raise FileNotFoundError(f"{path}: pose bank or motion folder not found")
+    from rmpl.errors import InputError
+
+    raise InputError(path, "poses", "a pose bank (.npz) or a motion folder", "no such path")

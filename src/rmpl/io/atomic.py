@@ -29,6 +29,8 @@ import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
+from rmpl.errors import InputError
+
 __all__ = [
     "MANIFEST",
     "atomic_path",
@@ -114,7 +116,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.is_dir():
-        raise IsADirectoryError(21, "Is a directory (expected a file path)", str(path))
+        raise InputError(path, None, "an output file path", "an existing directory")
     clean_stale_parts(path.parent)
     token = secrets.token_hex(4)
     tmp_path = path.parent / f".{path.name}.{os.getpid()}-{token}{PART_TAG}{path.suffix}"
@@ -223,7 +225,7 @@ def staged_folder(folder: str | Path) -> Iterator[Path]:
     """
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
-        raise NotADirectoryError(20, "Not a directory (expected an output folder)", str(folder))
+        raise InputError(folder, None, "an output folder", "a regular file")
     folder.mkdir(parents=True, exist_ok=True)
     recover_folder(folder)
     staging = folder / f"{STAGING}{os.getpid()}"

@@ -183,22 +183,56 @@ def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) ->
 
 
 def load_checkpoint(path: str | Path) -> tuple[RMPL, dict]:
-    """Load a checkpoint directory written by :func:`save_checkpoint`."""
-    from safetensors.torch import load_file
+    """Load a checkpoint directory written by :func:`save_checkpoint`.
 
+    Raises:
+        InputError: a missing, unreadable or damaged ``config.json`` or ``model.safetensors``,
+            or weights that do not fit the config; the message names the file.
+    """
     path = Path(path)
     cfg_file, weights = path / "config.json", path / "model.safetensors"
     for f in (cfg_file, weights):
         if not f.is_file():
-            raise FileNotFoundError(
-                f"{f}: checkpoint file missing (expected config.json + model.safetensors)"
-            )
-    meta = json.loads(cfg_file.read_text())
-    if "model" not in meta:
-        raise ValueError(f"{cfg_file}: field 'model' missing; not an rmpl checkpoint")
-    model = build_model(RMPLConfig.from_dict(meta["model"]))
-    model.load_state_dict(load_file(str(weights)))
+            raise InputError(
+                f, None, "a checkpoint file (a folder with config.json + model.safetensors)",
+                "no such file",
+            )  # fmt: skip
+    meta = _checkpoint_meta(cfg_file)
+    try:
+        model = build_model(RMPLConfig.from_dict(meta["model"]))
+    except (TypeError, ValueError, KeyError) as e:
+        raise InputError(cfg_file, "model", "an rmpl model configuration", e) from None
+    model.load_state_dict(_checkpoint_tensors(weights, model))
     return model.eval(), meta
+
+
+def _checkpoint_meta(cfg_file: Path) -> dict:
+    try:
+        meta = json.loads(cfg_file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(cfg_file, None, "a readable checkpoint config.json", e) from None
+    except ValueError as e:
+        raise InputError(cfg_file, None, "valid JSON (an rmpl checkpoint)", e) from None
+    if not isinstance(meta, dict) or "model" not in meta:
+        raise InputError(cfg_file, "model", "a value (an rmpl checkpoint)", "no such key")
+    return meta
+
+
+def _checkpoint_tensors(weights: Path, model: RMPL) -> dict:
+    from safetensors.torch import load_file
+
+    try:
+        tensors = load_file(str(weights))
+    except Exception as e:  # noqa: BLE001 - SafetensorError and OSError, by version
+        raise InputError(weights, None, "safetensors weights (rmpl train)", e) from None
+    want = model.state_dict()
+    bad = sorted(
+        k for k in set(want) | set(tensors)
+        if k not in tensors or k not in want or tensors[k].shape != want[k].shape
+    )  # fmt: skip
+    if bad:
+        raise InputError(weights, None, "the tensors of the model in config.json", bad[:3])
+    return tensors
 
 
 def validation_sets(
