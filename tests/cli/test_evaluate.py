@@ -76,7 +76,9 @@ def test_evaluate_unknown_method(tmp_path, capsys):
         ["evaluate", "--dataset", "synthetic", "--root", str(tmp_path), "--methods", "magic"]
     )
     assert code == 2
-    assert "magic" in capsys.readouterr().err
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "magic" in err[0], err
+    assert "'--methods'" in err[0] and "triangulate, robust, rmpl" in err[0], err
 
 
 @pytest.mark.shared

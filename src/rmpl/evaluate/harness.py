@@ -80,6 +80,11 @@ def view_subsets(num_views: int, spec: str) -> dict[str, list[tuple[int, ...]]]:
 # --------------------------------------------------------------------------- configuration
 
 
+def _plain(values) -> list[float]:
+    """Numbers as plain Python floats, so a message prints 0.0 and not np.float64(0.0)."""
+    return [float(v) for v in values]
+
+
 @dataclass(frozen=True)
 class EvalConfig:
     """Test-time perturbations and metric thresholds, identical for every method.
@@ -104,13 +109,12 @@ class EvalConfig:
 
     def __post_init__(self) -> None:
         if not self.dropout or any(not 0 <= p < 1 for p in self.dropout):
-            raise ValueError(f"--dropout: probabilities in [0, 1), got {list(self.dropout)}")
+            raise ValueError(f"--dropout: probabilities in [0, 1), got {_plain(self.dropout)}")
         if self.calib_noise is not None:
             deg, m = self.calib_noise
             if not (deg >= 0 and m >= 0) or deg == m == 0:
-                raise ValueError(
-                    f"--calib-noise: DEG,MM >= 0 and not both 0, got {self.calib_noise}"
-                )
+                got = tuple(_plain(self.calib_noise))
+                raise ValueError(f"--calib-noise: DEG,MM >= 0 and not both 0, got {got}")
         if self.calib_reps < 1:
             raise ValueError(f"--calib-reps must be >= 1, got {self.calib_reps}")
         if not self.pck_threshold > 0:

@@ -107,7 +107,7 @@ def _checked(keypoints, scores, rig: Rig, sizes, min_score: float):
     N, V, J = sc.shape
     if V != len(rig):
         raise ValueError(f"{V} views of 2D but {len(rig)} cameras")
-    bad = [k for k in sizes if not 1 <= k <= V - 1]
+    bad = [int(k) for k in sizes if not 1 <= k <= V - 1]
     if bad:
         raise ValueError(f"view counts must be in 1..{V - 1} (one view is held out), got {bad}")
     if not 0 < min_score <= 1:

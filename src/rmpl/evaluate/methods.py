@@ -79,4 +79,8 @@ def parse_methods(spec: str) -> dict[str, Method]:
         raise InputError(None, "--methods", "at least one method", spec)
     if len(set(names)) != len(names):
         raise InputError(None, "--methods", "each method once", spec)
+    for name in names:
+        if name.partition(":")[0] not in METHODS:
+            accepted = ", ".join(METHODS)
+            raise InputError(None, "--methods", f"methods among {accepted} (rmpl:MODEL)", name)
     return {name: make_method(name) for name in names}
