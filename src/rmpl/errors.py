@@ -12,6 +12,12 @@ class InputError(ValueError):
 
     >>> str(InputError("calib.toml", "cam_1.matrix", "a 3x3 matrix", "[1, 2]"))
     "calib.toml: field 'cam_1.matrix': expected a 3x3 matrix, got [1, 2]"
+
+    NumPy scalars print as plain numbers:
+
+    >>> import numpy as np
+    >>> str(InputError(None, "fps", "a positive number", np.float64(0.0)))
+    "input: field 'fps': expected a positive number, got 0.0"
     """
 
     def __init__(
@@ -27,6 +33,15 @@ class InputError(ValueError):
             where += f": field {field!r}"
         msg = f"{where}: expected {expected}"
         if got is not None:
-            text = str(got)
+            text = str(_plain(got))
             msg += f", got {text[:200] + '...' if len(text) > 200 else text}"
         super().__init__(msg)
+
+
+def _plain(x: object) -> object:
+    """NumPy scalars (also inside lists and tuples) as Python numbers, for messages."""
+    if isinstance(x, list | tuple):
+        return type(x)(_plain(v) for v in x)
+    if hasattr(x, "item") and getattr(x, "ndim", None) == 0:
+        return x.item()
+    return x

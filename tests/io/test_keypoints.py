@@ -484,3 +484,58 @@ def test_failed_save_leaves_no_file(tmp_path, monkeypatch):
     with pytest.raises(InputError):
         save_keypoints(kp, tmp_path / "kp.npz")
     assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- array types
+
+
+def _npz_with(path: Path, **arrays) -> Path:
+    T, V, P, J = 2, 2, 1, 17
+    fields = dict(
+        format=np.array("rmpl.keypoints2d"),
+        keypoints=np.full((T, V, P, J, 2), 100.0),
+        scores=np.full((T, V, P, J), 0.9),
+        skeleton=np.array("coco17"),
+        views=np.array(["a", "b"]),
+        frames=np.arange(T),
+        fps=np.array(30.0),
+    )
+    with open(path, "wb") as f:
+        np.savez(f, **{**fields, **arrays})
+    return path
+
+
+@pytest.mark.parametrize(
+    "name, value",
+    [
+        ("keypoints", np.ones((2, 2, 1, 17, 2), bool)),
+        ("keypoints", np.full((2, 2, 1, 17, 2), 100 + 1j)),
+        ("scores", np.ones((2, 2, 1, 17), bool)),
+        ("scores", np.full((2, 2, 1, 17), "0.9")),
+    ],
+)
+def test_bool_complex_and_text_arrays_are_refused_by_name(tmp_path, name, value):
+    path = _npz_with(tmp_path / "kp.npz", **{name: value})
+    with pytest.raises(InputError, match=rf"kp\.npz: field '{name}': expected an array of real"):
+        load_keypoints(path)
+
+
+def test_object_array_is_refused_naming_the_array(tmp_path):
+    obj = np.empty((2, 2, 1, 17, 2), object)
+    obj[...] = 1.0
+    path = _npz_with(tmp_path / "kp.npz", keypoints=obj)
+    with pytest.raises(InputError, match=r"field 'keypoints'.*object array") as e:
+        load_keypoints(path)
+    assert "allow_pickle" not in str(e.value)
+
+
+def test_garbage_npz_message_has_no_numpy_advice(tmp_path):
+    (tmp_path / "kp.npz").write_bytes(b"\x80\x04 not an archive" * 20)
+    with pytest.raises(InputError, match="not a zip") as e:
+        load_keypoints(tmp_path / "kp.npz")
+    assert "allow_pickle" not in str(e.value)
+
+
+def test_api_arrays_of_bools_are_refused():
+    with pytest.raises(InputError, match="field 'keypoints'.*bool"):
+        Keypoints2D(np.ones((1, 1, 1, 17, 2), bool), np.ones((1, 1, 1, 17)))

@@ -67,6 +67,7 @@ import logging
 import re
 import tomllib
 import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -77,7 +78,14 @@ from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
 from rmpl.skeleton import SKELETONS, convert, convert_scores
 
-__all__ = ["FORMATS", "Keypoints2D", "load_keypoints", "save_keypoints"]
+__all__ = [
+    "FAR_MARGIN",
+    "FORMATS",
+    "Keypoints2D",
+    "drop_far_keypoints",
+    "load_keypoints",
+    "save_keypoints",
+]
 
 log = logging.getLogger(__name__)
 
@@ -180,10 +188,50 @@ class Keypoints2D:
 
 
 def _floats(x, field: str) -> np.ndarray:
+    """``x`` as a float array; booleans, complex numbers, text and objects are refused."""
     try:
-        return np.array(x, dtype=float)
+        a = np.asarray(x)
     except (TypeError, ValueError):
-        raise InputError(None, field, "an array of numbers", type(x).__name__) from None
+        raise InputError(None, field, "an array of numbers (not ragged lists)", "ragged") from None
+    if a.dtype.kind not in "iuf":
+        raise InputError(None, field, "an array of real numbers", f"a {a.dtype} array")
+    return np.array(a, dtype=float)
+
+
+#: A keypoint more than this many image sizes beyond its image's border (x < -m W or
+#: x > (1 + m) W, likewise y with H) is treated as missing (:func:`drop_far_keypoints`).
+FAR_MARGIN = 1.0
+
+
+def drop_far_keypoints(
+    keypoints: np.ndarray, scores: np.ndarray, sizes: np.ndarray, view_axis: int = -3
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Keypoints far outside their image (see :data:`FAR_MARGIN`) become missing.
+
+    Args:
+        keypoints: pixels, shape (..., V, ..., J, 2) with the views on ``view_axis``.
+        scores: shape ``keypoints.shape[:-1]``.
+        sizes: image (width, height) per view, shape (V, 2); NaN where unknown (then
+            nothing is dropped in that view).
+
+    Returns:
+        The keypoints (NaN where dropped), the scores (0 there) and how many were dropped.
+
+    >>> kp = np.array([[[10.0, 20.0], [5e12, 3.0]]])  # (V=1, J=2, 2)
+    >>> out, sc, n = drop_far_keypoints(kp, np.ones((1, 2)), np.array([[640.0, 480.0]]))
+    >>> n, sc.tolist()
+    (1, [[1.0, 0.0]])
+    """
+    shape = [1] * keypoints.ndim
+    shape[view_axis], shape[-1] = len(sizes), 2
+    size = np.asarray(sizes, float).reshape(shape)
+    far = ((keypoints < -FAR_MARGIN * size) | (keypoints > (1 + FAR_MARGIN) * size)).any(-1)
+    far &= scores > 0
+    n = int(far.sum())
+    if n:
+        keypoints, scores = keypoints.copy(), scores.copy()
+        keypoints[far], scores[far] = np.nan, 0.0
+    return keypoints, scores, n
 
 
 def _check_skeleton(name: str, num_joints: int) -> None:
@@ -282,11 +330,28 @@ def _json_array(doc: dict, key: str, shape: tuple[int, ...], path: Path, dtype=f
 
 
 def _open_npz(path: Path) -> dict[str, np.ndarray]:
+    """Every array of an NPZ; pickled (object) arrays are refused, naming the array."""
+    expected = "an .npz archive written by rmpl"
     try:
-        with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise InputError(path, None, "an .npz archive written by rmpl", e) from None
+        z = np.load(path, allow_pickle=False)
+    except ValueError:  # numpy's "allow_pickle" advice: the file is no zip archive
+        raise InputError(path, None, expected, "not a zip (.npz) archive") from None
+    except (OSError, EOFError, zipfile.BadZipFile) as e:
+        raise InputError(path, None, expected, e) from None
+    if not isinstance(z, np.lib.npyio.NpzFile):
+        raise InputError(path, None, expected, "a single .npy array")
+    out = {}
+    with z:
+        for k in z.files:
+            try:
+                out[k] = z[k]
+            except ValueError:
+                raise InputError(
+                    path, k, "an array of numbers or text", "an object array (pickled data)"
+                ) from None
+            except (OSError, EOFError, zipfile.BadZipFile, zlib.error) as e:
+                raise InputError(path, k, "a readable array", e) from None
+    return out
 
 
 def _npz_get(data: dict[str, np.ndarray], key: str, path: Path) -> np.ndarray:
