@@ -438,15 +438,8 @@ def build_pose_bank(
         root: folder of motion files. subjects: keep only these subject ids (None = all).
         exclude_subjects: drop these subject ids (e.g. the held-out ``"03"``).
     """
-    from rmpl.synth.motion import (
-        BROKEN_CLIPS,
-        _load_clip,
-        _matches,
-        _sample,
-        find_clips,
-        to_coco17,
-        usable_frames,
-    )
+    from rmpl.synth.motion import BROKEN_CLIPS, find_clips, to_coco17, usable_frames
+    from rmpl.synth.motion.bank import _load_clip, _matches, _sample
 
     clips = [
         c
