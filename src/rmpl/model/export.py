@@ -53,3 +53,53 @@ class OnnxLifter:
 
     def __call__(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
         return self.session.run(None, {"rays": rays, "scores": scores})[0]
+
+
+class _EncodeOutputs(torch.nn.Module):
+    """``RMPL.encode`` as a module with tensor outputs (for export)."""
+
+    def __init__(self, model: RMPL) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, rays: torch.Tensor, scores: torch.Tensor):
+        enc = self.model.encode(rays, scores)
+        answer = enc.base + self.model.head(enc.tokens)
+        return answer, enc.base, enc.tokens, enc.valid.to(rays.dtype), enc.views.to(rays.dtype)
+
+
+class OnnxEncoder:
+    """:meth:`RMPL.encode` (and the answer) run by onnxruntime, for a frozen per-frame model.
+
+    ``__call__(rays (B, V, J, 6), scores (B, V, J))`` returns numpy arrays answer (B, J, 3),
+    base (B, J, 3), tokens (B, J, D), valid (B, J) and views (B, J) as floats.
+    """
+
+    def __init__(self, model: RMPL, threads: int = 2) -> None:
+        import onnxruntime as ort
+
+        wrapper = _EncodeOutputs(model.eval())
+        rays = torch.randn(2, 3, model.config.num_joints, 6)
+        rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
+        scores = torch.rand(2, 3, model.config.num_joints)
+        names = ["answer", "base", "tokens", "valid", "views"]
+        with tempfile.TemporaryDirectory() as d, warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            path = Path(d) / "encode.onnx"
+            torch.onnx.export(
+                wrapper,
+                (rays, scores),
+                str(path),
+                input_names=["rays", "scores"],
+                output_names=names,
+                dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}}
+                | {n: {0: "B"} for n in names},
+                opset_version=17,
+                dynamo=False,
+            )
+            opts = ort.SessionOptions()
+            opts.intra_op_num_threads = threads
+            self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+
+    def __call__(self, rays: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, ...]:
+        return tuple(self.session.run(None, {"rays": rays, "scores": scores}))

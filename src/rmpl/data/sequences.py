@@ -1,0 +1,427 @@
+"""Synthetic training windows in time: real motion, one rig per window, temporal detector noise.
+
+A :class:`SequenceBank` keeps motion capture as clean continuous segments (COCO-17, metres,
+z up, at ``fps`` frames per second). A :class:`SequenceSource` draws windows from it: each
+window plays one segment at a random frame rate (10-120 fps) and speed, places the person in a
+room, sees them with one random rig (:func:`rmpl.synth.cameras.sample_cameras`) and runs the
+per-frame detector model (:func:`rmpl.synth.noise.detect_like`) with the temporal structure
+one frame cannot show (:class:`TemporalNoise`):
+
+- 2D error correlated over time (an AR(1) process per view and joint);
+- occlusion bursts: a joint, a limb or the whole person missing in a view for a run of frames;
+- left/right swaps and whole-body flips that last several frames;
+- identity confusions: a view follows another person for a run of frames (the association
+  and tracking errors of ``rmpl run``);
+- whole frames missing in every view (the person left all images, or the tracker lost them).
+
+Shape glossary: ``B`` windows, ``T`` frames, ``V`` views, ``J`` joints.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.errors import InputError
+from rmpl.geometry.camera import project, rodrigues
+from rmpl.geometry.rays import rays_from_keypoints
+from rmpl.io.atomic import atomic_path
+from rmpl.skeleton import COCO17
+from rmpl.synth.noise import NoiseConfig, detect_like
+
+__all__ = ["SequenceBank", "SequenceBatch", "SequenceSource", "TemporalNoise"]
+
+log = logging.getLogger(__name__)
+
+_LIMBS = (
+    (5, 7, 9),  # left arm
+    (6, 8, 10),  # right arm
+    (11, 13, 15),  # left leg
+    (12, 14, 16),  # right leg
+)
+
+
+@dataclass
+class SequenceBank:
+    """Clean motion segments.
+
+    Attributes:
+        poses: (N, J, 3) float32, metres, z up, floor at z = 0; segments back to back.
+        start: (S,) int, first pose of each segment. length: (S,) int, its poses.
+        subject: (S,) str, the subject of each segment (CMU subject id).
+        fps: frames per second of ``poses``.
+    """
+
+    poses: np.ndarray
+    start: np.ndarray
+    length: np.ndarray
+    subject: np.ndarray
+    fps: float
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    def select(self, keep: np.ndarray) -> SequenceBank:
+        """The segments where ``keep`` (bool, shape (S,)) is True."""
+        starts, lengths = self.start[keep], self.length[keep]
+        parts = [self.poses[s : s + n] for s, n in zip(starts, lengths, strict=True)]
+        new_start = np.cumsum(np.r_[0, lengths[:-1]]).astype(np.int64)
+        poses = np.concatenate(parts) if parts else self.poses[:0]
+        return SequenceBank(poses, new_start, lengths.copy(), self.subject[keep], self.fps)
+
+    def split(self, holdout: list[str] | tuple[str, ...]) -> tuple[SequenceBank, SequenceBank]:
+        """(segments of other subjects, segments of ``holdout`` subjects)."""
+        held = np.isin(self.subject, list(holdout))
+        return self.select(~held), self.select(held)
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            np.savez_compressed(
+                tmp,
+                poses=self.poses,
+                start=self.start,
+                length=self.length,
+                subject=self.subject.astype(str),
+                fps=np.float64(self.fps),
+                kind=np.array("rmpl-sequence-bank-1"),
+            )
+        return path
+
+    @staticmethod
+    def load(path: str | Path) -> SequenceBank:
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                if "kind" not in z.files or str(z["kind"]) != "rmpl-sequence-bank-1":
+                    raise InputError(path, "kind", "a sequence bank from `rmpl poses --sequences`")
+                return SequenceBank(
+                    z["poses"].astype(np.float32),
+                    z["start"].astype(np.int64),
+                    z["length"].astype(np.int64),
+                    z["subject"].astype(str),
+                    float(z["fps"]),
+                )
+        except (OSError, ValueError) as e:
+            raise InputError(path, None, "a sequence bank (.npz)", str(e)) from None
+
+    @staticmethod
+    def from_motion_dir(
+        root: str | Path, fps: float = 60.0, min_seconds: float = 1.0
+    ) -> SequenceBank:
+        """Every clean stretch of motion below ``root`` (ASF/AMC, BVH), resampled to ``fps``."""
+        from rmpl.synth import motion as M
+
+        clips = [c for c in M.find_clips(root) if not M._matches(c.clip, M.BROKEN_CLIPS)]
+        if not clips:
+            raise InputError(root, None, "some .amc or .bvh files", "none")
+        skeletons: dict = {}
+        poses, starts, lengths, subjects, n = [], [], [], [], 0
+        for clip in clips:
+            motion = M._load_clip(clip, skeletons)
+            for seg in _clean_segments(motion, fps, min_seconds):
+                poses.append(seg)
+                starts.append(n)
+                lengths.append(len(seg))
+                subjects.append(clip.subject)
+                n += len(seg)
+        if not poses:
+            raise InputError(root, None, f"clean motion of at least {min_seconds} s", "none")
+        return SequenceBank(
+            np.concatenate(poses).astype(np.float32),
+            np.array(starts, np.int64),
+            np.array(lengths, np.int64),
+            np.array(subjects, str),
+            float(fps),
+        )
+
+
+def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
+    """The clip's usable stretches as COCO-17 at ``fps``, floor at z = 0."""
+    from rmpl.synth import motion as M
+
+    keep = M.usable_frames(motion, min_seconds)
+    if not keep.any():
+        return []
+    joints = M.to_coco17(motion)
+    joints[..., 2] -= M.floor_height(motion.positions[keep])
+    edges = np.flatnonzero(np.diff(np.r_[0, keep.astype(np.int8), 0]))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        dur = (b - a - 1) / motion.fps
+        if dur < min_seconds:
+            continue
+        t = np.arange(0, dur, 1.0 / fps) * motion.fps + a  # fractional source frames
+        i0 = np.floor(t).astype(int).clip(a, b - 1)
+        i1 = np.minimum(i0 + 1, b - 1)
+        w = (t - i0)[:, None, None]
+        out.append((1 - w) * joints[i0] + w * joints[i1])
+    return out
+
+
+@dataclass(frozen=True)
+class TemporalNoise:
+    """The temporal part of the detector model (rates per window unless said otherwise).
+
+    Attributes:
+        fps_range: frame rates drawn log-uniformly, frames per second.
+        speed_range: playback speed of the motion.
+        iid_scale: factor on the per-frame (independent) 2D error of :class:`NoiseConfig`.
+        corr_scale: the correlated error's std, as a factor of the per-joint 2D error.
+        corr_tau: range of its time constant, seconds (log-uniform).
+        burst_rate: mean occlusion bursts per view and window.
+        burst_seconds: range of a burst's duration (log-uniform), seconds.
+        swap_rate: probability per view and left/right pair of a swap run.
+        flip_rate: probability per view of a whole-body flip run.
+        swap_seconds: range of a swap or flip run's duration, seconds.
+        identity_rate: probability per window that one view follows another person.
+        identity_seconds: range of that run's duration, seconds.
+        gap_rate: probability per window of a run of frames missing in every view.
+        gap_frames: the most frames of such a run.
+        drop_rate: independent keypoint removal per frame.
+    """
+
+    fps_range: tuple[float, float] = (10.0, 120.0)
+    speed_range: tuple[float, float] = (0.8, 1.25)
+    iid_scale: float = 0.7
+    corr_scale: float = 0.7
+    corr_tau: tuple[float, float] = (0.05, 1.0)
+    burst_rate: float = 0.5
+    burst_seconds: tuple[float, float] = (0.1, 2.0)
+    swap_rate: float = 0.03
+    flip_rate: float = 0.02
+    swap_seconds: tuple[float, float] = (0.1, 0.6)
+    identity_rate: float = 0.08
+    identity_seconds: tuple[float, float] = (0.2, 1.0)
+    gap_rate: float = 0.15
+    gap_frames: int = 12
+    drop_rate: float = 0.1
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TemporalNoise:
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise ValueError(
+                f"unknown TemporalNoise keys {sorted(unknown)}; known: {sorted(known)}"
+            )
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+
+@dataclass
+class SequenceBatch:
+    """Windows of one person each.
+
+    Attributes:
+        rays: (B, T, V, J, 6) float32; scores: (B, T, V, J) float32, 0 = missing.
+        times: (B, T) float32 seconds. target: (B, T, J, 3) float32 metres.
+        keypoints: (B, T, V, J, 2) pixels, NaN = missing. K, R, t: (B, V, ...) the rig.
+    """
+
+    rays: np.ndarray
+    scores: np.ndarray
+    times: np.ndarray
+    target: np.ndarray
+    keypoints: np.ndarray
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+
+
+class SequenceSource:
+    """Fresh training windows from a :class:`SequenceBank`.
+
+    Args:
+        bank: the motion.
+        noise: the per-frame detector model; its per-frame view misses, flips, swaps and
+            truncations are replaced by temporal runs (:class:`TemporalNoise`).
+        temporal: the temporal detector model.
+        camera_preset: random camera setup preset; room: half-extent of the floor area.
+        seed: random seed.
+    """
+
+    def __init__(
+        self,
+        bank: SequenceBank,
+        noise: NoiseConfig | None = None,
+        temporal: TemporalNoise | None = None,
+        camera_preset: str = "universal",
+        room: float = 2.0,
+        scale_range: tuple[float, float] = (0.88, 1.22),
+        seed: int | None = None,
+    ) -> None:
+        if len(bank) == 0:
+            raise ValueError("the sequence bank has no segment")
+        self.bank = bank
+        self.temporal = temporal or TemporalNoise()
+        base = noise or NoiseConfig()
+        self.noise = replace(
+            base,
+            joint_sigma=tuple(self.temporal.iid_scale * np.asarray(base.joint_sigma)),
+            swap_rate=0.0,
+            flip_rate=0.0,
+            miss_view_rate=0.01,
+            truncate_rate=0.02,
+        )
+        self.joint_sigma = np.asarray(base.joint_sigma)
+        self.camera_preset, self.room, self.scale_range = camera_preset, room, scale_range
+        self.rng = np.random.default_rng(seed)
+
+    def motion(self, B: int, T: int) -> tuple[np.ndarray, np.ndarray]:
+        """B windows of T frames: placed joints (B, T, J, 3) and times (B, T) seconds."""
+        rng, bank, tn = self.rng, self.bank, self.temporal
+        seg = rng.choice(len(bank), B, p=bank.length / bank.length.sum())
+        fps = np.exp(rng.uniform(*np.log(tn.fps_range), B))
+        speed = rng.uniform(*tn.speed_range, B)
+        dur = (bank.length[seg] - 1) / bank.fps  # seconds of motion available
+        step = np.minimum(speed / fps, dur / max(T - 1, 1))  # source seconds per frame
+        t0 = rng.uniform(0, 1, B) * (dur - step * (T - 1))
+        src = (t0[:, None] + step[:, None] * np.arange(T)) * bank.fps  # fractional frames
+        i0 = np.floor(src).astype(int)
+        i1 = np.minimum(i0 + 1, bank.length[seg][:, None] - 1)
+        w = (src - i0)[..., None, None]
+        off = bank.start[seg][:, None]
+        joints = (1 - w) * bank.poses[off + i0] + w * bank.poses[off + i1]
+        times = np.arange(T)[None] / fps[:, None] + rng.uniform(0, 100, (B, 1))
+        return self._place(joints.astype(np.float64)), times
+
+    def _place(self, joints: np.ndarray) -> np.ndarray:
+        """Mirror, scale, turn and place each window as a whole: (B, T, J, 3)."""
+        rng = self.rng
+        B = len(joints)
+        mirror = rng.random(B) < 0.5
+        flipped = joints[:, :, COCO17.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
+        joints = np.where(mirror[:, None, None, None], flipped, joints)
+        root = joints[:, :, 11:13].mean(2).mean(1)  # (B, 3) mean mid-hip of the window
+        origin = np.stack([root[:, 0], root[:, 1], np.zeros(B)], -1)[:, None, None]
+        scale = rng.uniform(*self.scale_range, (B, 1, 1, 1))
+        Rz = rodrigues(np.stack([np.zeros(B), np.zeros(B), rng.uniform(-np.pi, np.pi, B)], -1))
+        local = np.einsum("bij,btnj->btni", Rz, (joints - origin) * scale)
+        place = np.concatenate([rng.uniform(-self.room, self.room, (B, 2)), np.zeros((B, 1))], -1)
+        return local + place[:, None, None]
+
+    def batch(self, size: int, frames: int, num_views: int, train: bool = True) -> SequenceBatch:
+        """Draw ``size`` windows of ``frames`` frames seen by ``num_views`` cameras."""
+        from rmpl.synth.cameras import sample_cameras
+
+        rng = self.rng
+        B, T, V = size, frames, num_views
+        joints, times = self.motion(B, T)
+        J = joints.shape[2]
+        centre = joints[:, :, 11:13].mean(2).mean(1)  # (B, 3)
+        K, R, t, wh = sample_cameras(V, centre, self.camera_preset, rng)
+        tile = lambda a: np.repeat(a, T, axis=0)  # noqa: E731  (B, ...) -> (B*T, ...)
+        flat = joints.reshape(B * T, J, 3)
+        kp, sc = detect_like(flat, tile(K), tile(R), tile(t), tile(wh), rng, self.noise)
+        kp, sc = kp.reshape(B, T, V, J, 2), sc.reshape(B, T, V, J)
+        uv = project(
+            joints[:, :, None], K[:, None, :, None], R[:, None, :, None], t[:, None, :, None]
+        )
+        kp, sc = _temporal_noise(kp, sc, uv, joints, times, (K, R, t, wh), self, rng, train)
+        rays = rays_from_keypoints(kp, K=K[:, None], R=R[:, None], t=t[:, None])
+        rays = np.where(sc[..., None] > 0, rays, 0.0)
+        return SequenceBatch(
+            rays.astype(np.float32),
+            sc.astype(np.float32),
+            times.astype(np.float32),
+            joints.astype(np.float32),
+            kp,
+            K,
+            R,
+            t,
+        )
+
+
+def _runs(rng, shape, rate, seconds, times) -> np.ndarray:
+    """A boolean mask (*shape, T): at most one run per entry, drawn with probability ``rate``,
+    lasting a log-uniform duration in ``seconds``. times: (B, T); shape starts with B."""
+    B, T = times.shape
+    on = rng.random(shape) < rate
+    dur = np.exp(rng.uniform(*np.log(seconds), shape))
+    span = times[:, -1] - times[:, 0]  # (B,)
+    span = span.reshape((B,) + (1,) * (len(shape) - 1))
+    begin = times[:, :1].reshape(span.shape) + rng.uniform(-0.5, 1.0, shape) * span
+    tt = times.reshape((B,) + (1,) * (len(shape) - 1) + (T,))
+    return on[..., None] & (tt >= begin[..., None]) & (tt < (begin + dur)[..., None])
+
+
+def _temporal_noise(kp, sc, uv, joints, times, rig, src: SequenceSource, rng, train: bool):
+    """Add the temporal detector model to per-frame keypoints.
+
+    kp (B, T, V, J, 2), sc (B, T, V, J), uv (B, T, V, J, 2) the true projections, joints
+    (B, T, J, 3), times (B, T). Returns new (kp, sc).
+    """
+    tn = src.temporal
+    B, T, V, J, _ = kp.shape
+    kp, sc = kp.copy(), sc.copy()
+    height = np.nan_to_num(np.ptp(uv, axis=3).max(-1), nan=1.0).clip(5, None)  # (B, T, V)
+    # Correlated error: AR(1) per window, view and joint.
+    tau = np.exp(rng.uniform(*np.log(tn.corr_tau), (B, 1, 1)))
+    dt = np.diff(times, axis=1, prepend=times[:, :1])[:, :, None, None]  # (B, T, 1, 1)
+    rho = np.exp(-dt / tau[:, None])  # (B, T, 1, 1)
+    e = np.empty((B, T, V, J, 2))
+    e[:, 0] = rng.standard_normal((B, V, J, 2))
+    white = rng.standard_normal((B, T, V, J, 2))
+    for k in range(1, T):  # the recursion runs over frames only
+        r = rho[:, k, ..., None]
+        e[:, k] = r * e[:, k - 1] + np.sqrt(1 - r**2) * white[:, k]
+    scale = tn.corr_scale * src.joint_sigma[None, None, None, :, None] * height[..., None, None]
+    kp = kp + e * scale
+    # Left/right swap runs and whole-body flip runs.
+    pairs = np.array(COCO17.flip_pairs)
+    swap = _runs(rng, (B, V, len(pairs)), tn.swap_rate, tn.swap_seconds, times)  # (B,V,P,T)
+    swap |= _runs(rng, (B, V, 1), tn.flip_rate, tn.swap_seconds, times)
+    swap = swap.transpose(0, 3, 1, 2)  # (B, T, V, P)
+    perm = np.broadcast_to(np.arange(J), (B, T, V, J)).copy()
+    for i, (a, b) in enumerate(pairs):
+        perm[..., a] = np.where(swap[..., i], b, perm[..., a])
+        perm[..., b] = np.where(swap[..., i], a, perm[..., b])
+    kp = np.take_along_axis(kp, perm[..., None].repeat(2, -1), axis=3)
+    sc = np.take_along_axis(sc, perm, axis=3)
+    # Identity confusion: one view follows the next window's person for a run of frames.
+    if B > 1:
+        other = np.roll(joints, 1, axis=0)
+        K, R, t, _ = rig
+        uv_o = project(
+            other[:, :, None], K[:, None, :, None], R[:, None, :, None], t[:, None, :, None]
+        )
+        which = rng.integers(0, V, B)
+        run = _runs(rng, (B,), tn.identity_rate, tn.identity_seconds, times)  # (B, T)
+        hit = run[:, :, None] & (np.arange(V)[None, None] == which[:, None, None])  # (B,T,V)
+        jitter = 0.01 * height[..., None, None] * rng.standard_normal(kp.shape)
+        conf = rng.uniform(0.3, 0.9, sc.shape)
+        kp = np.where(hit[..., None, None], uv_o + jitter, kp)
+        sc = np.where(hit[..., None], conf, sc)
+    # Occlusion bursts: a joint, a limb or the whole person, in one view, for a while.
+    missing = np.zeros((B, T, V, J), bool)
+    for _ in range(2):
+        run = _runs(rng, (B, V), tn.burst_rate / 2, tn.burst_seconds, times)  # (B, V, T)
+        kind = rng.random((B, V))
+        joint = rng.integers(0, J, (B, V))
+        limb = np.array(_LIMBS)[rng.integers(0, len(_LIMBS), (B, V))]  # (B, V, 3)
+        sel = np.zeros((B, V, J), bool)
+        np.put_along_axis(sel, joint[..., None], True, axis=2)
+        sel_limb = np.zeros((B, V, J), bool)
+        np.put_along_axis(sel_limb, limb, True, axis=2)
+        sel = np.where((kind >= 0.4)[..., None], sel_limb, sel)
+        sel = np.where((kind >= 0.7)[..., None], True, sel)
+        missing |= run.transpose(0, 2, 1)[..., None] & sel[:, None]
+    # Whole frames missing in every view.
+    gap = rng.random(B) < tn.gap_rate
+    length = rng.integers(1, tn.gap_frames + 1, B)
+    first = rng.integers(0, T, B)
+    k = np.arange(T)[None]
+    missing |= (gap[:, None] & (k >= first[:, None]) & (k < (first + length)[:, None]))[
+        :, :, None, None
+    ]
+    if train and tn.drop_rate > 0:
+        missing |= rng.random(missing.shape) < tn.drop_rate
+    w, h = rig[3][:, None, :, None, 0], rig[3][:, None, :, None, 1]
+    outside = (kp[..., 0] < 0) | (kp[..., 0] > w - 1) | (kp[..., 1] < 0) | (kp[..., 1] > h - 1)
+    missing |= outside | ~np.isfinite(kp).all(-1) | (sc <= 0)
+    kp[missing] = np.nan
+    sc[missing] = 0.0
+    return kp, sc

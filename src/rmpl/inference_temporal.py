@@ -1,0 +1,207 @@
+"""Lift whole tracks: the temporal model over sliding windows, arrays in, arrays out.
+
+::
+
+    lifter = TemporalLifter.from_pretrained()              # the shipped temporal model
+    track = lifter.lift_track(keypoints, scores, rig, fps=30)   # (T, V, 17, 2), (T, V, 17)
+    track.points, track.sigma                              # (T, 17, 3) metres, (T, 17) metres
+
+A track longer than the model's window is read in windows overlapping by half, each frame
+averaged over the windows that hold it with triangular weights (a window's middle counts
+most). Every frame is encoded once by the per-frame model. The world's up axis is handled as
+in :class:`rmpl.inference.Lifter`.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rmpl.errors import InputError
+from rmpl.geometry.camera import Rig
+from rmpl.geometry.rays import rays_from_keypoints
+from rmpl.inference import PRETRAINED, estimate_up, rotation_to_z
+from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
+
+__all__ = ["TemporalLifter", "TrackResult", "frame_times", "window_starts"]
+
+log = logging.getLogger(__name__)
+
+PRETRAINED_TEMPORAL: dict[str, Path] = {"temporal": PRETRAINED["default"].parent / "temporal"}
+
+
+@dataclass
+class TrackResult:
+    """One lifted track.
+
+    Attributes:
+        points: (T, J, 3) world metres; NaN where no window saw the person.
+        sigma: (T, J) metres, the scale of each joint's error: it is below
+            ``RADIUS_50 * sigma`` (:meth:`radius`) half of the time, below ``RADIUS_90 * sigma``
+            nine times in ten (calibrated on held-out synthetic windows).
+        num_views: (T, J) number of views that saw each joint.
+    """
+
+    points: np.ndarray
+    sigma: np.ndarray
+    num_views: np.ndarray
+
+    def radius(self, level: float = 0.5) -> np.ndarray:
+        """The predicted error radius (T, J) at ``level`` 0.5 or 0.9, metres."""
+        if level not in (0.5, 0.9):
+            raise ValueError(f"level must be 0.5 or 0.9, got {level}")
+        return self.sigma * (RADIUS_50 if level == 0.5 else RADIUS_90)
+
+
+def frame_times(num_frames: int, fps: float | None, times: np.ndarray | None) -> np.ndarray:
+    """Timestamps (T,) in seconds from ``times`` or ``fps`` (exactly one must be given)."""
+    if (fps is None) == (times is None):
+        raise InputError(None, "fps / times", "exactly one of a frame rate or frame times")
+    if times is None:
+        if not np.isfinite(fps) or fps <= 0:
+            raise InputError(None, "fps", "a frame rate > 0 frames per second", fps)
+        return np.arange(num_frames) / float(fps)
+    t = np.asarray(times, dtype=float)
+    if t.shape != (num_frames,) or not np.isfinite(t).all() or (np.diff(t) <= 0).any():
+        raise InputError(
+            None, "times", f"{num_frames} finite, strictly increasing seconds", t.shape
+        )
+    return t
+
+
+def window_starts(num_frames: int, window: int) -> list[int]:
+    """First frames of windows of ``window`` frames overlapping by half, the last one ending
+    at the track's end. A track shorter than a window is one window."""
+    if num_frames <= window:
+        return [0]
+    step = max(window // 2, 1)
+    starts = list(range(0, num_frames - window + 1, step))
+    if starts[-1] != num_frames - window:
+        starts.append(num_frames - window)
+    return starts
+
+
+def _triangle(n: int) -> np.ndarray:
+    """Weights (n,) highest in the middle of a window, never zero."""
+    k = np.arange(n)
+    return np.minimum(k + 1, n - k).astype(float)
+
+
+class TemporalLifter:
+    """A trained :class:`TemporalRMPL` ready for inference.
+
+    Args:
+        model: the network. meta: the checkpoint's description. onnx: run the per-frame
+            model through onnxruntime when it is installed.
+    """
+
+    def __init__(self, model: TemporalRMPL, meta: dict | None = None, onnx: bool = True) -> None:
+        self.model = model.eval()
+        self.meta = meta or {}
+        if onnx and self.model.fast_encoder is None:
+            try:
+                self.model.use_onnx()
+            except ImportError:
+                log.debug("onnxruntime not installed; the per-frame model runs in torch")
+
+    @classmethod
+    def from_pretrained(cls, name_or_path: str | Path = "temporal") -> TemporalLifter:
+        """Load the shipped temporal model by name or a checkpoint directory."""
+        from rmpl.training.temporal import load_temporal
+
+        path = Path(PRETRAINED_TEMPORAL.get(str(name_or_path), name_or_path))
+        if not (path / "config.json").is_file():
+            raise InputError(path, None, "a temporal checkpoint directory or 'temporal'")
+        model, meta = load_temporal(path)
+        return cls(model, meta)
+
+    @property
+    def num_joints(self) -> int:
+        return self.model.frame_model.config.num_joints
+
+    @property
+    def window(self) -> int:
+        return self.model.config.window
+
+    def _rays(self, kp, sc, rig: Rig, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Checked input -> rays (T, V, J, 6) and scores in the z-up frame, and that rotation."""
+        J = self.num_joints
+        if kp.ndim != 4 or kp.shape[-2:] != (J, 2):
+            raise InputError(None, "keypoints", f"one track, shape (T, V, {J}, 2)", kp.shape)
+        if sc.shape != kp.shape[:-1]:
+            raise InputError(None, "scores", f"shape {kp.shape[:-1]} matching keypoints", sc.shape)
+        if kp.shape[0] == 0:
+            raise InputError(None, "keypoints", "at least one frame", "0 frames")
+        if kp.shape[1] != len(rig):
+            raise InputError(
+                None, "keypoints", f"{len(rig)} views to match the rig {rig.names}", kp.shape[1]
+            )
+        ok = np.isfinite(kp).all(-1) & np.isfinite(sc) & (sc > 0)
+        rays = rays_from_keypoints(np.where(ok[..., None], kp, 0.0), rig)
+        Rc = rotation_to_z(estimate_up(rig) if up is None else np.asarray(up, float))
+        rays = np.concatenate([rays[..., :3] @ Rc.T, rays[..., 3:] @ Rc.T], -1)
+        rays = np.where(ok[..., None], rays, 0.0).astype(np.float32)
+        return rays, np.where(ok, np.clip(sc, 0, 1), 0.0).astype(np.float32), Rc
+
+    @torch.no_grad()
+    def lift_track(
+        self,
+        keypoints: np.ndarray,
+        scores: np.ndarray,
+        rig: Rig,
+        fps: float | None = None,
+        times: np.ndarray | None = None,
+        up: np.ndarray | None = None,
+        batch_windows: int = 32,
+    ) -> TrackResult:
+        """Lift one person's track.
+
+        Args:
+            keypoints: (T, V, J, 2) pixels, NaN = missing (a frame may be missing entirely).
+            scores: (T, V, J) confidences, 0 = missing.
+            rig: the V cameras. fps or times: the frame rate, or each frame's time (T,) s.
+            up: world up direction (3,); estimated from the rig when None.
+            batch_windows: windows per forward pass.
+
+        Returns:
+            :class:`TrackResult`.
+        """
+        kp, sc = np.asarray(keypoints, float), np.asarray(scores, float)
+        rays, s, Rc = self._rays(kp, sc, rig, up)
+        t = frame_times(len(kp), fps, times)
+        enc = self.model.encode_frames(torch.from_numpy(rays)[None], torch.from_numpy(s)[None])
+        points, sigma = self._windows(enc, t, batch_windows)
+        points = points @ Rc  # back to the user's world
+        return TrackResult(points, sigma, (s > 0).sum(1))
+
+    def _windows(self, enc, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:
+        """Run the temporal stage over overlapping windows of an encoded track and stitch."""
+        T = len(t)
+        W = min(self.window, T)
+        starts = window_starts(T, W)
+        acc = np.zeros((T, self.num_joints, 3))
+        acc_s = np.zeros((T, self.num_joints))
+        weight = np.zeros(T)
+        tri = _triangle(W)
+        times = torch.from_numpy(t.astype(np.float32))
+        for i in range(0, len(starts), batch):
+            chunk = starts[i : i + batch]
+            parts = [torch.stack([e[0, a : a + W] for a in chunk]) for e in enc]
+            tt = torch.stack([times[a : a + W] for a in chunk])
+            p, sg = self.model.forward_encoded(*parts, tt)
+            for k, a in enumerate(chunk):
+                ok = np.isfinite(p[k].numpy()).all((-1, -2))  # (W,)
+                w = tri * ok
+                acc[a : a + W] += w[:, None, None] * np.nan_to_num(p[k].numpy())
+                acc_s[a : a + W] += w[:, None] * np.nan_to_num(sg[k].numpy())
+                weight[a : a + W] += w
+        with np.errstate(invalid="ignore", divide="ignore"):
+            points = acc / weight[:, None, None]
+            sigma = acc_s / weight[:, None]
+        points[weight == 0] = np.nan
+        sigma[weight == 0] = np.nan
+        return points, sigma

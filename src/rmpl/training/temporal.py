@@ -1,0 +1,369 @@
+"""Training the temporal lifter on synthetic windows (:mod:`rmpl.data.sequences`).
+
+The per-frame model is a shipped or trained checkpoint, frozen by default; only the
+space-time transformer learns. The loss is the mean per-joint position error over every
+frame of the window (missing frames and unseen joints included: they are what the model is
+for) plus a Gaussian negative log-likelihood that trains the uncertainty on the detached
+error. A run is resumable: the optimizer, the step and every random state are saved with
+each checkpoint, so a resumed run equals an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+import tomllib
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from rmpl.data.sequences import SequenceBank, SequenceSource, TemporalNoise
+from rmpl.errors import InputError
+from rmpl.io.atomic import atomic_path
+from rmpl.model.temporal import RADIUS_50, TemporalConfig, TemporalRMPL
+from rmpl.skeleton import COCO17, KP_STAR
+
+__all__ = [
+    "TemporalTrainConfig",
+    "fit_sigma_scale",
+    "load_temporal",
+    "save_temporal",
+    "train_temporal",
+]
+
+log = logging.getLogger(__name__)
+
+FORMAT = "rmpl-temporal-checkpoint-1"
+
+
+@dataclass(frozen=True)
+class TemporalTrainConfig:
+    """A temporal training run (TOML: top-level keys, ``[model]``, ``[noise]``).
+
+    Attributes:
+        sequences: a sequence bank (.npz, :meth:`SequenceBank.save`) or a motion folder.
+        frame_model: the per-frame checkpoint: a shipped name or a directory.
+        holdout: subjects never trained on (validation).
+        steps, batch_size (windows), lr, weight_decay: optimisation.
+        min_views, max_views, single_view_rate: views per batch.
+        nll_weight: weight of the uncertainty's negative log-likelihood.
+        val_every, val_size: validation cadence and windows per view count.
+        seed, threads, time_limit (seconds, 0 = none; run again to resume).
+        model: :class:`TemporalConfig` overrides. noise: :class:`TemporalNoise` overrides.
+    """
+
+    sequences: str = ""
+    frame_model: str = "default"
+    holdout: tuple[str, ...] = ("03",)
+    steps: int = 3000
+    batch_size: int = 16
+    lr: float = 5e-4
+    weight_decay: float = 1e-4
+    min_views: int = 1
+    max_views: int = 5
+    single_view_rate: float = 0.05
+    nll_weight: float = 0.05
+    val_every: int = 500
+    val_size: int = 64
+    seed: int = 0
+    threads: int = 2
+    time_limit: float = 0.0
+    model: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_toml(cls, path: str | Path, overrides: dict | None = None) -> TemporalTrainConfig:
+        with open(path, "rb") as f:
+            d = tomllib.load(f)
+        d |= overrides or {}
+        known = {f.name for f in fields(cls)}
+        unknown = set(d) - known
+        if unknown:
+            raise InputError(path, ", ".join(sorted(unknown)), f"one of {sorted(known)}")
+        if "holdout" in d:
+            d["holdout"] = tuple(d["holdout"])
+        return cls(**d)
+
+    def model_config(self) -> TemporalConfig:
+        return TemporalConfig.from_dict(self.model)
+
+    def noise_config(self) -> TemporalNoise:
+        return TemporalNoise.from_dict(self.noise)
+
+
+def _load_bank(cfg: TemporalTrainConfig) -> tuple[SequenceBank, SequenceBank]:
+    path = Path(cfg.sequences)
+    if path.is_dir():
+        bank = SequenceBank.from_motion_dir(path)
+    elif path.is_file():
+        bank = SequenceBank.load(path)
+    else:
+        raise InputError(cfg.sequences or "(empty)", "sequences", "a sequence bank or a folder")
+    train, val = bank.split(cfg.holdout)
+    if len(train) == 0 or len(val) == 0:
+        raise InputError(path, "holdout", "subjects that leave both training and validation data")
+    return train, val
+
+
+def build_temporal(cfg: TemporalTrainConfig) -> TemporalRMPL:
+    """A new temporal model around the per-frame checkpoint ``cfg.frame_model``."""
+    from rmpl.inference import PRETRAINED
+    from rmpl.training.loop import load_checkpoint
+
+    frame, _ = load_checkpoint(PRETRAINED.get(cfg.frame_model, Path(cfg.frame_model)))
+    return TemporalRMPL(frame, cfg.model_config())
+
+
+def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = None) -> None:
+    """Write ``model.safetensors`` (per-frame and temporal weights) and ``config.json``."""
+    from safetensors.torch import save_file
+
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
+    meta = {
+        "format": FORMAT,
+        "model": model.frame_model.config.to_dict(),
+        "temporal": model.config.to_dict(),
+        "skeleton": model.frame_model.config.skeleton,
+        "joints": list(COCO17.joints),
+        "units": "metres",
+        **(extra or {}),
+    }
+    tensors = {k: v.detach().contiguous() for k, v in model.state_dict().items()}
+    with atomic_path(path / "model.safetensors") as tmp:
+        save_file(tensors, str(tmp))
+    with atomic_path(path / "config.json") as tmp:
+        tmp.write_text(json.dumps(meta, indent=2))
+
+
+def load_temporal(path: str | Path) -> tuple[TemporalRMPL, dict]:
+    """Load a checkpoint written by :func:`save_temporal`."""
+    from safetensors.torch import load_file
+
+    from rmpl.model.lifter import RMPL, RMPLConfig
+
+    path = Path(path)
+    meta = json.loads((path / "config.json").read_text())
+    if meta.get("format") != FORMAT:
+        raise InputError(path / "config.json", "format", FORMAT, meta.get("format"))
+    frame = RMPL(RMPLConfig.from_dict(meta["model"]))
+    model = TemporalRMPL(frame, TemporalConfig.from_dict(meta["temporal"]))
+    model.load_state_dict(load_file(str(path / "model.safetensors")))
+    return model.eval(), meta
+
+
+def _tensors(b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    return tuple(torch.from_numpy(a) for a in (b.rays, b.scores, b.times, b.target))
+
+
+def loss_terms(model: TemporalRMPL, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(position loss in metres, uncertainty NLL, per-joint errors (B, T, J)) on a batch."""
+    rays, scores, times, target = _tensors(b)
+    points, sigma = model(rays, scores, times)
+    seen = (scores > 0).flatten(1).any(1)  # (B,) windows with nothing seen give NaN: skipped
+    err = (points[seen] - target[seen]).norm(dim=-1)  # (B', T, J)
+    s = sigma[seen].clamp_min(1e-3)
+    nll = 3 * s.log() + err.detach() ** 2 / (2 * s**2)
+    return err.mean(), nll.mean(), err
+
+
+def validation_sets(val: SequenceBank, cfg: TemporalTrainConfig, views=(1, 2, 3, 5)) -> dict:
+    """Fixed windows of held-out motion per number of views (seeded, no keypoint removal)."""
+    src = SequenceSource(val, temporal=cfg.noise_config(), seed=12345)
+    T = cfg.model_config().window
+    return {v: src.batch(cfg.val_size, T, v, train=False) for v in views}
+
+
+@torch.no_grad()
+def evaluate_windows(model: TemporalRMPL, sets: dict) -> dict[str, float]:
+    """Per view count: KP* MPJPE (mm) of the temporal model and of the per-frame model alone,
+    all joints and joints seen in fewer than 2 views; the uncertainty's 50%/90% coverage."""
+    model.eval()
+    out = {}
+    for v, b in sets.items():
+        rays, scores, times, target = _tensors(b)
+        points, sigma = model(rays, scores, times)
+        frame = model.encode_frames(rays, scores)[0]
+        e = (points - target).norm(dim=-1).numpy()[..., list(KP_STAR)]
+        ef = (frame - target).norm(dim=-1).numpy()[..., list(KP_STAR)]
+        seen = (b.scores > 0).sum(2)[..., list(KP_STAR)]
+        frame_ok = (b.scores > 0).any((2, 3))[..., None].repeat(len(KP_STAR), -1)
+        hard = (seen < 2) & frame_ok
+        r = sigma.numpy()[..., list(KP_STAR)]
+        out[f"kpstar_{v}v"] = float(np.nanmean(e) * 1000)
+        out[f"frame_kpstar_{v}v"] = float(np.mean(ef[frame_ok]) * 1000)
+        out[f"temporal_seenframes_{v}v"] = float(np.mean(e[frame_ok]) * 1000)
+        if hard.any():
+            out[f"hard_{v}v"] = float(np.mean(e[hard]) * 1000)
+            out[f"frame_hard_{v}v"] = float(np.mean(ef[hard]) * 1000)
+        out[f"cover50_{v}v"] = float(np.mean(e < RADIUS_50 * r))
+    model.train()
+    return out
+
+
+@torch.no_grad()
+def fit_sigma_scale(model: TemporalRMPL, sets: dict) -> float:
+    """The factor that makes half of the held-out errors fall inside the 50% radius."""
+    model.eval()
+    ratios = []
+    for b in sets.values():
+        rays, scores, times, target = _tensors(b)
+        points, sigma = model(rays, scores, times)
+        raw = sigma / model.config.sigma_scale
+        ratios.append(((points - target).norm(dim=-1) / raw).flatten().numpy())
+    r = np.concatenate(ratios)
+    return float(np.median(r[np.isfinite(r)]) / RADIUS_50)
+
+
+def _lr_at(step: int, cfg: TemporalTrainConfig) -> float:
+    warmup = min(200, cfg.steps // 20)
+    f = min(1.0, (step + 1) / max(warmup, 1))
+    return cfg.lr * f * 0.5 * (1 + math.cos(math.pi * min(step / max(cfg.steps, 1), 1.0)))
+
+
+def _views(rng: np.random.Generator, cfg: TemporalTrainConfig) -> int:
+    if cfg.min_views == 1 and rng.random() < cfg.single_view_rate:
+        return 1
+    return int(rng.integers(max(cfg.min_views, 2), cfg.max_views + 1))
+
+
+class _Run:
+    """The mutable state of a run: model, optimizer, sources, step; saved and restored whole."""
+
+    def __init__(self, cfg: TemporalTrainConfig, out: Path, train_bank: SequenceBank) -> None:
+        self.cfg, self.out = cfg, out
+        torch.manual_seed(cfg.seed)
+        self.model = build_temporal(cfg)
+        if self.model.config.frozen_encoder:
+            self.model.use_onnx(cfg.threads)
+        params = [p for p in self.model.parameters() if p.requires_grad]
+        self.opt = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+        self.src = SequenceSource(train_bank, temporal=cfg.noise_config(), seed=cfg.seed)
+        self.rng_views = np.random.default_rng(cfg.seed + 1)
+        self.step, self.elapsed, self.running = 0, 0.0, None
+
+    @property
+    def state_file(self) -> Path:
+        return self.out / "state.pt"
+
+    def resume(self) -> bool:
+        if not self.state_file.exists():
+            return False
+        s = torch.load(self.state_file, weights_only=False)
+        self.model.load_state_dict(s["model"])
+        self.opt.load_state_dict(s["optimizer"])
+        self.step, self.elapsed, self.running = s["step"], s["elapsed"], s["running"]
+        self.src.rng.bit_generator.state = s["rng_source"]
+        self.rng_views.bit_generator.state = s["rng_views"]
+        torch.set_rng_state(s["rng_torch"])
+        return True
+
+    def save_state(self) -> None:
+        state = {
+            "model": self.model.state_dict(),
+            "optimizer": self.opt.state_dict(),
+            "step": self.step,
+            "elapsed": self.elapsed,
+            "running": self.running,
+            "rng_source": self.src.rng.bit_generator.state,
+            "rng_views": self.rng_views.bit_generator.state,
+            "rng_torch": torch.get_rng_state(),
+        }
+        with atomic_path(self.state_file) as tmp:
+            torch.save(state, tmp)
+
+    def train_step(self) -> float:
+        cfg = self.cfg
+        V = _views(self.rng_views, cfg)
+        b = self.src.batch(cfg.batch_size, self.model.config.window, V)
+        for g in self.opt.param_groups:
+            g["lr"] = _lr_at(self.step, cfg)
+        loss, nll, _ = loss_terms(self.model, b)
+        total = loss + cfg.nll_weight * nll
+        if not torch.isfinite(total):
+            raise RuntimeError(f"non-finite loss at step {self.step}; stopping without saving")
+        self.opt.zero_grad(set_to_none=True)
+        total.backward()
+        torch.nn.utils.clip_grad_norm_(self.model.parameters(), 1.0)
+        self.opt.step()
+        self.step += 1
+        value = loss.item()
+        self.running = value if self.running is None else 0.98 * self.running + 0.02 * value
+        return value
+
+
+def _write_log(out: Path, record: dict) -> None:
+    """Append ``record`` to log.jsonl, first dropping records of steps at or after it (left by
+    a run killed between its log line and its checkpoint)."""
+    path = out / "log.jsonl"
+    lines = path.read_text().splitlines() if path.exists() else []
+    keep = [ln for ln in lines if ln.strip() and json.loads(ln)["step"] < record["step"]]
+    with atomic_path(path) as tmp:
+        tmp.write_text("".join(ln + "\n" for ln in keep + [json.dumps(record)]))
+
+
+def train_temporal(cfg: TemporalTrainConfig, out: str | Path) -> Path:
+    """Train (or resume) a temporal model into directory ``out``; returns ``out``."""
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    torch.set_num_threads(cfg.threads)
+    train_bank, val_bank = _load_bank(cfg)
+    run = _Run(cfg, out, train_bank)
+    if run.resume():
+        log.info("resuming %s at step %d", out, run.step)
+    sets = validation_sets(val_bank, cfg)
+    summary = {
+        "train_config": asdict(cfg),
+        "train_segments": len(train_bank),
+        "val_segments": len(val_bank),
+        "parameters": run.model.num_parameters,
+    }
+    run.model.train()
+    t_start, start_elapsed = time.time(), run.elapsed
+    bar = tqdm(total=cfg.steps, initial=run.step, desc="train", unit="step", dynamic_ncols=True)
+    while run.step < cfg.steps:
+        run.train_step()
+        run.elapsed = start_elapsed + time.time() - t_start
+        bar.update(1)
+        bar.set_postfix(loss_mm=f"{run.running * 1000:.1f}")
+        over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
+        if run.step % cfg.val_every == 0 or run.step == cfg.steps or over_time:
+            _checkpoint(run, sets, summary, bar)
+            if over_time:
+                log.info("time limit reached at step %d; run again to resume", run.step)
+                break
+    bar.close()
+    return out
+
+
+def _checkpoint(run: _Run, sets: dict, summary: dict, bar) -> None:
+    """Validate, calibrate the uncertainty, write the model, the log line and the state."""
+    model = run.model  # trains with sigma_scale = 1; the saved model carries the calibration
+    scale = fit_sigma_scale(model, sets)
+    model.config = model.config.with_(sigma_scale=scale)
+    metrics = evaluate_windows(model, sets)
+    record = {
+        "step": run.step,
+        "seconds": round(run.elapsed, 1),
+        "train_loss_mm": run.running * 1000,
+        "sigma_scale": scale,
+        **metrics,
+    }
+    bar.write(
+        f"step {run.step}: "
+        + " ".join(
+            f"{k}={v:.1f}"
+            for k, v in metrics.items()
+            if k.startswith(("kpstar", "frame_kp", "hard"))
+        )
+    )
+    save_temporal(model, run.out, {"training": {**summary, "last": record}})
+    model.config = model.config.with_(sigma_scale=1.0)
+    _write_log(run.out, record)
+    run.save_state()
