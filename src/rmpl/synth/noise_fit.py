@@ -136,57 +136,139 @@ class DetectorStats:
         return "\n".join(lines)
 
 
+@dataclass(frozen=True, eq=False)
+class _Detections:
+    """The detector's keypoints beside the projected truth, M meshes x V views x J joints.
+
+    err and rel are pixel and person-relative errors; valid marks joints that are detected,
+    inside the image and not under a pasted occluder (comparable with the truth).
+    """
+
+    det: np.ndarray  # (M, V, J, 2) detected pixels
+    proj: np.ndarray  # (M, V, J, 2) projected true joints, pixels
+    scores: np.ndarray  # (M, V, J)
+    inside: np.ndarray  # (M, V, J) the true joint lies in the image
+    pasted: np.ndarray  # (M, V, J) under a pasted black square
+    occ: np.ndarray  # (M, V, J) occluded by the body itself
+    seen: np.ndarray  # (M, V) the detector found the person
+    height: np.ndarray  # (M, V) person size, pixels
+    err: np.ndarray  # (M, V, J) pixels, NaN where missed
+    rel: np.ndarray  # (M, V, J) err / height
+    valid: np.ndarray  # (M, V, J)
+
+
 def detector_stats(root: str | Path) -> DetectorStats:
     """Error, misses and calibration of the detector in the shards of ``root``, plus the
     fitted :class:`~rmpl.synth.noise.NoiseConfig` values (``.noise``)."""
+    d = _load_detections(root)
+    M, V, _ = d.scores.shape
+    noise = _fit_noise(d)
+    return DetectorStats(
+        root=str(root),
+        by_height=_miss_by_height(d),
+        meshes=M,
+        views=M * V,
+        height_px=float(np.median(d.height)),
+        view_miss_rate=float(1 - d.seen.mean()),
+        joint_table=_joint_table(d),
+        calibration=_score_calibration(d),
+        overall=_overall(d),
+        noise=noise,
+    )
+
+
+def _load_detections(root: str | Path) -> _Detections:
     from rmpl.synth.noise import NoiseConfig, occlusion_mask
 
     keys = ("joints3d", "keypoints", "scores", "projected", "R", "t", "size", "occluded")
     d = load_shards(root, keys)
     det, scores, proj = d["keypoints"].astype(float), d["scores"], d["projected"].astype(float)
-    M, V, J = scores.shape
     size = d["size"][..., None, :].astype(float)  # (M, V, 1, 2)
     inside = np.all((proj >= -0.5) & (proj < size - 0.5), axis=-1)  # (M, V, J) true joint
     lo, hi = proj.min(axis=2), proj.max(axis=2)
     height = np.max(hi - lo, axis=-1)  # (M, V) person size in pixels
     seen = scores.max(axis=-1) > 0  # (M, V) the detector found the person
     err = np.linalg.norm(det - proj, axis=-1)  # (M, V, J), NaN where missed
-    rel = err / height[..., None]
     centers = -np.einsum("mvji,mvj->mvi", d["R"], d["t"])
     cfg0 = NoiseConfig()
     occ = occlusion_mask(d["joints3d"].astype(float), centers, cfg0.limb_radius, cfg0.torso_radius)
     pasted = d["occluded"]  # black squares: not part of the detector's own noise
     valid = inside & seen[..., None] & (scores > 0) & ~pasted  # detected, comparable
+    return _Detections(
+        det, proj, scores, inside, pasted, occ, seen, height, err, err / height[..., None], valid
+    )
 
-    # Left/right swaps.
+
+def _swaps(d: _Detections) -> tuple[np.ndarray, float, float]:
+    """Joints caught in a left/right swap (M, V, J), the pair swap rate and the whole-body
+    flip rate."""
+    M, V, _ = d.scores.shape
     swapped = np.zeros((M, V, len(_SWAP_PAIRS)), bool)
     for k, (a, b) in enumerate(_SWAP_PAIRS):
-        straight = err[..., a] + err[..., b]
-        cross = np.linalg.norm(det[..., a, :] - proj[..., b, :], axis=-1) + np.linalg.norm(
-            det[..., b, :] - proj[..., a, :], axis=-1
+        straight = d.err[..., a] + d.err[..., b]
+        cross = np.linalg.norm(d.det[..., a, :] - d.proj[..., b, :], axis=-1) + np.linalg.norm(
+            d.det[..., b, :] - d.proj[..., a, :], axis=-1
         )
-        apart = np.linalg.norm(proj[..., a, :] - proj[..., b, :], axis=-1) > 0.05 * height
-        ok = valid[..., a] & valid[..., b] & apart
+        apart = np.linalg.norm(d.proj[..., a, :] - d.proj[..., b, :], axis=-1) > 0.05 * d.height
+        ok = d.valid[..., a] & d.valid[..., b] & apart
         swapped[..., k] = ok & (cross < 0.5 * straight)
-    pair_ok = np.stack([valid[..., a] & valid[..., b] for a, b in _SWAP_PAIRS], -1)
+    pair_ok = np.stack([d.valid[..., a] & d.valid[..., b] for a, b in _SWAP_PAIRS], -1)
     flip = swapped.sum(-1) >= 6  # (M, V)
     n_pair = pair_ok[~flip].sum()
     swap_rate = float(swapped[~flip].sum() / max(n_pair, 1))
-    flip_rate = float(flip[seen].mean()) if seen.any() else 0.0
-    in_swap = np.zeros_like(valid)
+    flip_rate = float(flip[d.seen].mean()) if d.seen.any() else 0.0
+    in_swap = np.zeros_like(d.valid)
     for k, (a, b) in enumerate(_SWAP_PAIRS):
         in_swap[..., a] |= swapped[..., k] | flip
         in_swap[..., b] |= swapped[..., k] | flip
-    clean = valid & ~in_swap
-    outlier = clean & (rel > _OUTLIER)
-    inlier = clean & ~outlier
+    return in_swap, swap_rate, flip_rate
 
+
+def _fit_noise(d: _Detections) -> dict:
+    """The NoiseConfig values that reproduce the detector's errors, misses and scores."""
+    from rmpl.synth.noise import NoiseConfig
+
+    cfg0 = NoiseConfig()
+    in_swap, swap_rate, flip_rate = _swaps(d)
+    clean = d.valid & ~in_swap
+    outlier = clean & (d.rel > _OUTLIER)
+    inlier = clean & ~outlier
+    sigma, occ_ratio, spread = _error_scales(d, inlier, cfg0)
+    conf_visible, conf_occluded, slope, resid = _fit_confidence(d, inlier, cfg0)
+    in_seen = d.inside & d.seen[..., None] & ~d.pasted
+    truncated = (in_seen & (d.scores == 0)).any(-1) & d.seen
+    occ_seen = in_seen & d.occ
+    any_inside = d.inside.any(-1)
+    occluded_drop = float((d.scores[occ_seen] == 0).mean()) if occ_seen.any() else 0.0
+    noise = {
+        "joint_sigma": [round(float(s), 5) for s in sigma],
+        "sigma_spread": round(spread, 4),
+        "occluded_sigma": round(max(occ_ratio, 1.0), 4),
+        "occluded_drop": round(occluded_drop, 4),
+        "conf_visible": round(float(np.clip(conf_visible, 0, 1)), 4),
+        "conf_occluded": round(float(np.clip(conf_occluded, 0, 1)), 4),
+        "conf_slope": round(max(slope, 0.0), 4),
+        "conf_jitter": round(resid, 4),
+        "outlier_rate": round(float(outlier.sum() / max(clean.sum(), 1)), 4),
+        "swap_rate": round(swap_rate, 4),
+        "flip_rate": round(flip_rate, 4),
+        "miss_view_rate": round(float((~d.seen & any_inside).sum() / max(any_inside.sum(), 1)), 4),
+        "truncate_rate": round(float(truncated.sum() / max(d.seen.sum(), 1)), 4),
+    }
+    NoiseConfig.from_dict(noise)  # the trainer must accept it
+    return noise
+
+
+def _error_scales(d: _Detections, inlier: np.ndarray, cfg0) -> tuple[np.ndarray, float, float]:
+    """Per-joint sigma (J,), the occluded/visible error ratio and the per-view spread."""
+    J = d.scores.shape[-1]
+    occ = d.occ
     # Per-joint sigma from unoccluded inliers (the outliers are their own parameter).
     sigma = np.zeros(J)
     for j in range(J):
-        r = rel[..., j][inlier[..., j] & ~occ[..., j]]
+        r = d.rel[..., j][inlier[..., j] & ~occ[..., j]]
         sigma[j] = np.median(r) / _RAYLEIGH_MEDIAN if r.size else cfg0.joint_sigma[j]
-    norm = rel / sigma  # error in units of the joint's sigma
+    norm = d.rel / sigma  # error in units of the joint's sigma
     occ_ratio = (
         float(np.median(norm[inlier & occ]) / np.median(norm[inlier & ~occ]))
         if (inlier & occ).any() and (inlier & ~occ).any()
@@ -194,7 +276,7 @@ def detector_stats(root: str | Path) -> DetectorStats:
     )
     # Per-view quality spread, minus what sampling ~n Rayleigh draws gives alone.
     view_med, counts = [], []
-    for m, v in zip(*np.nonzero(seen), strict=True):
+    for m, v in zip(*np.nonzero(d.seen), strict=True):
         sel = inlier[m, v] & ~occ[m, v]
         if sel.sum() >= 5:
             view_med.append(np.median(norm[m, v][sel]))
@@ -205,69 +287,58 @@ def detector_stats(root: str | Path) -> DetectorStats:
         rng = np.random.default_rng(0)
         sim = [np.median(np.hypot(*rng.standard_normal((2, c)))) for c in counts]
         spread = float(np.sqrt(max(observed - np.var(np.log(sim)), 0.0)))
+    return sigma, occ_ratio, spread
 
-    # Confidence: score = base(occluded) - slope * err / (0.05 h) + jitter.
-    x = rel[inlier] / 0.05
-    o = occ[inlier].astype(float)
-    y = scores[inlier].astype(float)
+
+def _fit_confidence(d: _Detections, inlier: np.ndarray, cfg0) -> tuple[float, ...]:
+    """Fit score = base(occluded) - slope * err / (0.05 h) + jitter: (visible base,
+    occluded base, slope, jitter)."""
+    x = d.rel[inlier] / 0.05
+    o = d.occ[inlier].astype(float)
+    y = d.scores[inlier].astype(float)
     A = np.stack([1 - o, o, -x], -1)
-    if len(y) >= 10:
-        coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-        resid = float(np.std(y - A @ coef))
-        conf_visible, conf_occluded, slope = (float(c) for c in coef)
-    else:
-        conf_visible, conf_occluded, slope, resid = (
-            cfg0.conf_visible,
-            cfg0.conf_occluded,
-            cfg0.conf_slope,
-            cfg0.conf_jitter,
-        )
+    if len(y) < 10:
+        return cfg0.conf_visible, cfg0.conf_occluded, cfg0.conf_slope, cfg0.conf_jitter
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = float(np.std(y - A @ coef))
+    conf_visible, conf_occluded, slope = (float(c) for c in coef)
+    return conf_visible, conf_occluded, slope, resid
 
-    in_seen = inside & seen[..., None] & ~pasted
-    truncated = (in_seen & (scores == 0)).any(-1) & seen
-    occ_seen = in_seen & occ
-    any_inside = inside.any(-1)
-    noise = {
-        "joint_sigma": [round(float(s), 5) for s in sigma],
-        "sigma_spread": round(spread, 4),
-        "occluded_sigma": round(max(occ_ratio, 1.0), 4),
-        "occluded_drop": round(float((scores[occ_seen] == 0).mean()) if occ_seen.any() else 0.0, 4),
-        "conf_visible": round(float(np.clip(conf_visible, 0, 1)), 4),
-        "conf_occluded": round(float(np.clip(conf_occluded, 0, 1)), 4),
-        "conf_slope": round(max(slope, 0.0), 4),
-        "conf_jitter": round(resid, 4),
-        "outlier_rate": round(float(outlier.sum() / max(clean.sum(), 1)), 4),
-        "swap_rate": round(swap_rate, 4),
-        "flip_rate": round(flip_rate, 4),
-        "miss_view_rate": round(float((~seen & any_inside).sum() / max(any_inside.sum(), 1)), 4),
-        "truncate_rate": round(float(truncated.sum() / max(seen.sum(), 1)), 4),
-    }
-    NoiseConfig.from_dict(noise)  # the trainer must accept it
 
+def _joint_table(d: _Detections) -> list[dict]:
     table = []
-    joint_in = inside & ~pasted
+    joint_in = d.inside & ~d.pasted
     for j, name in enumerate(COCO17.joints):
-        e = err[..., j][valid[..., j]]
+        e = d.err[..., j][d.valid[..., j]]
         table.append(
             {
                 "joint": name,
                 "mean_px": float(e.mean()) if e.size else float("nan"),
                 "median_px": float(np.median(e)) if e.size else float("nan"),
                 "p90_px": float(np.percentile(e, 90)) if e.size else float("nan"),
-                "miss_pct": float(100 * (scores[..., j][joint_in[..., j]] == 0).mean()),
-                "mean_score": float(scores[..., j][valid[..., j]].mean()) if e.size else 0.0,
+                "miss_pct": float(100 * (d.scores[..., j][joint_in[..., j]] == 0).mean()),
+                "mean_score": float(d.scores[..., j][d.valid[..., j]].mean()) if e.size else 0.0,
             }
         )
-    e = err[valid]
-    overall = {
+    return table
+
+
+def _overall(d: _Detections) -> dict:
+    e = d.err[d.valid]
+    return {
         "mean_px": float(e.mean()),
         "median_px": float(np.median(e)),
         "p90_px": float(np.percentile(e, 90)),
-        "miss_pct": float(100 * (scores[joint_in] == 0).mean()),
-        "mean_score": float(scores[valid].mean()),
+        "miss_pct": float(100 * (d.scores[d.inside & ~d.pasted] == 0).mean()),
+        "mean_score": float(d.scores[d.valid].mean()),
     }
+
+
+def _score_calibration(d: _Detections) -> list[dict]:
+    """Error per score bin: does a higher score mean a smaller error?"""
     calibration = []
     edges = [0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 1.0001]
+    valid, scores = d.valid, d.scores
     for lo_, hi_ in zip(edges[:-1], edges[1:], strict=True):
         sel = valid & (scores > lo_) & (scores <= hi_) if lo_ > 0 else valid & (scores <= hi_)
         if not sel.any():
@@ -276,36 +347,30 @@ def detector_stats(root: str | Path) -> DetectorStats:
             {
                 "bin": f"{lo_:.1f}-{min(hi_, 1.0):.1f}",
                 "count": int(sel.sum()),
-                "median_px": float(np.median(err[sel])),
-                "mean_px": float(err[sel].mean()),
-                "median_rel": float(np.median(rel[sel])),
+                "median_px": float(np.median(d.err[sel])),
+                "mean_px": float(d.err[sel].mean()),
+                "median_rel": float(np.median(d.rel[sel])),
             }
         )
+    return calibration
+
+
+def _miss_by_height(d: _Detections) -> list[dict]:
+    """Missed views per bin of person height in pixels."""
     by_height = []
     h_edges = [0, 100, 200, 300, 400, 600, np.inf]
     for a, b in zip(h_edges[:-1], h_edges[1:], strict=True):
-        sel = (height >= a) & (height < b) & inside.all(-1)
+        sel = (d.height >= a) & (d.height < b) & d.inside.all(-1)
         if sel.any():
             label = f"{a}-{b}" if np.isfinite(b) else f">= {a}"
             by_height.append(
                 {
                     "bin": label,
                     "views": int(sel.sum()),
-                    "miss_pct": float(100 * (~seen[sel]).mean()),
+                    "miss_pct": float(100 * (~d.seen[sel]).mean()),
                 }
             )
-    return DetectorStats(
-        root=str(root),
-        by_height=by_height,
-        meshes=M,
-        views=M * V,
-        height_px=float(np.median(height)),
-        view_miss_rate=float(1 - seen.mean()),
-        joint_table=table,
-        calibration=calibration,
-        overall=overall,
-        noise=noise,
-    )
+    return by_height
 
 
 def fit_noise(root: str | Path) -> dict:
