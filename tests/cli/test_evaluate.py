@@ -102,8 +102,10 @@ def test_evaluate_shelf_triangulation(shared_data, tmp_path):
         )
         == 0
     )
-    row = (tmp_path / "results.csv").read_text().splitlines()[1].split(",")
+    lines = (tmp_path / "results.csv").read_text().splitlines()
+    row = lines[1].split(",")
     mpjpe, coverage = float(row[2]), float(row[3])
+    assert lines[0].endswith(",2d_source") and row[-1] == "detections"
     assert 30 < mpjpe < 80 and coverage > 95  # real detections, five views
 
 

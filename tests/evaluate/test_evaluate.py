@@ -6,6 +6,7 @@ Most runs use the fast methods (triangulate, robust); one runs the shipped RMPL 
 from __future__ import annotations
 
 import csv
+import logging
 
 import numpy as np
 import pytest
@@ -62,6 +63,9 @@ def test_loader_through_evaluate(
     root = fixtures / folder
     two_d = extra[1] if extra else "auto"
     evset = load_eval_set(dataset, root, two_d=two_d)
+    # The source in one word (results.csv's 2d_source): Panoptic has no detections.
+    auto = "detections" if dataset == "h36m" else "projection"
+    assert evset.two_d == (two_d if extra else auto)
     # Shapes: every part has V cameras, 2D (T, V, N, 17, 2) and ground truth (T, P, J, 3).
     assert evset.num_views == views
     for part in evset.parts:
@@ -133,24 +137,32 @@ def test_annotation_2d_triangulates_to_millimetres(fixtures):
 
 
 @pytest.mark.shared
-def test_campus_without_detections_falls_back_to_projection_and_says_so(fixtures, tmp_path):
-    assert (
-        _run(
-            "--dataset",
-            "campus",
-            "--root",
-            fixtures / "campus",
-            "--methods",
-            "triangulate",
-            "--views",
-            "all",
-            "--out",
-            tmp_path,
-        )
-        == 0
-    )
-    text = (tmp_path / "results.md").read_text()
-    assert "hold no keypoint: fell back" in text and "noise model" in text
+@pytest.mark.parametrize("without_file", [False, True])
+def test_campus_without_detections_falls_back_to_projection_and_says_so(
+    fixtures, tmp_path, caplog, without_file
+):
+    """--2d auto never switches its 2D source silently: a WARNING, a header note saying
+    why (the fixture's predictions cover none of its frames; or the file is missing), and
+    results.csv's 2d_source column naming the source."""
+    import shutil
+
+    root = fixtures / "campus"
+    if without_file:
+        root = tmp_path / "campus"
+        shutil.copytree(fixtures / "campus", root)
+        (root / "pred_campus_maskrcnn_hrnet_coco.pkl").unlink()
+    out = tmp_path / "out"
+    caplog.set_level(logging.INFO)
+    argv = ["--dataset", "campus", "--root", root, "--methods", "triangulate", "--views", "all"]
+    assert _run(*argv, "--out", out) == 0
+    text = (out / "results.md").read_text()
+    why = "pred_campus_maskrcnn_hrnet_coco.pkl is missing" if without_file else "hold no keypoint"
+    assert f"--2d auto: its {'detections file' if without_file else '2D detections'}" in text
+    assert why in text and "ground truth projected through the noise model" in text
+    assert ("hold no keypoint" in text) != without_file
+    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert any("--2d auto" in w and why in w for w in warnings), warnings
+    assert {r["2d_source"] for r in _rows(out / "results.csv")} == {"projection"}
 
 
 @pytest.mark.shared
@@ -578,6 +590,7 @@ def test_score_finished_results(fixtures, tmp_path, capsys):
     out = tmp_path / "eval"
     assert _run(*shelf, "--poses", tmp_path / "run" / "poses.npz", "--out", out) == 0
     assert [r["method"] for r in _rows(out / "results.csv")] == ["run"]
+    assert [r["2d_source"] for r in _rows(out / "results.csv")] == ["none"]  # no 2D used
     assert "finished 3D results" in (out / "results.md").read_text()
 
     # Frames that do not overlap, and options that cannot apply, are one-line errors.

@@ -57,6 +57,8 @@ class EvalSet:
         protocol: "associate", "single" or "given" (see the module docstring).
         pcp: whether the dataset reports PCP (Shelf, Campus).
         notes: further header lines (frames used, fallbacks).
+        two_d: the 2D source in one word, for the tables: "detections", "annotations",
+            "projection" or "keypoints" (a user file).
     """
 
     parts: tuple[MultiViewDataset, ...]
@@ -65,6 +67,7 @@ class EvalSet:
     protocol: str
     pcp: bool = False
     notes: tuple[str, ...] = ()
+    two_d: str = "detections"
 
     def __post_init__(self) -> None:
         if not self.parts:
@@ -257,12 +260,14 @@ class _Loaded:
         annotations: the 2D annotations (T, V, P, 17, 2) pixels, "h36m" when they are
             already in ``parts``, or None.
         notes: header lines (layout, frames used).
+        missing: why the dataset has no usable detections, when it is known.
     """
 
     parts: list[MultiViewDataset]
     detector: str | None = None
     annotations: np.ndarray | str | None = None
     notes: list[str] = dataclasses.field(default_factory=list)
+    missing: str | None = None
 
 
 def _load_shelf_campus(dataset: str, root: Path, frames: str, **_) -> _Loaded:
@@ -281,11 +286,13 @@ def _load_shelf_campus(dataset: str, root: Path, frames: str, **_) -> _Loaded:
             "neither layout",
         )
     data, annotations, note = _voxelpose(root, dataset, frames)
+    pred = root / f"pred_{dataset}_maskrcnn_hrnet_coco.pkl"
     return _Loaded(
         [data],
         "VoxelPose's Mask R-CNN + HRNet COCO-17 detections",
         annotations,
         ["layout: VoxelPose (actorsGT.mat)", note],
+        None if data.keypoints is not None else f"its detections file {pred} is missing",
     )
 
 
@@ -297,8 +304,10 @@ def _load_panoptic(dataset: str, root: Path, sequence, cameras, **_) -> _Loaded:
         seqs = sorted(p.name for p in root.iterdir() if (p / "hdPose3d_stage1_coco19").is_dir())
         if not seqs:
             raise InputError(root, None, "Panoptic sequence folders", "none")
-        return _Loaded([load_panoptic(root, s, cams) for s in seqs])
-    return _Loaded([load_panoptic(root, sequence, cams)])
+        parts = [load_panoptic(root, s, cams) for s in seqs]
+    else:
+        parts = [load_panoptic(root, sequence, cams)]
+    return _Loaded(parts, missing="Panoptic comes with no 2D detections")
 
 
 def _load_h36m(dataset: str, root: Path, subject, two_d: str, keypoints, **_) -> _Loaded:
@@ -307,16 +316,18 @@ def _load_h36m(dataset: str, root: Path, subject, two_d: str, keypoints, **_) ->
     subjects = [subject] if subject else h36m_subjects(root)
     det = root / "test_h36m_2d_detection.npy"
     src = {"annotations": "gt", "projection": "none"}.get(two_d, "detection")
+    missing = None
     if src == "detection" and not det.is_file():
         if two_d == "detections":
             raise InputError(det, None, "the H36M 2D detection .npy", "no such file")
-        src = "none"
+        src, missing = "none", f"its detections file {det} is missing"
     if keypoints:
         src = "none"
     return _Loaded(
         [load_h36m(root, s, source=src) for s in subjects],
         "MMPose's H36M 2D detections (test_h36m_2d_detection.npy)",
         "h36m" if src == "gt" else None,
+        missing=missing,
     )
 
 
@@ -349,27 +360,39 @@ def _with_annotations(loaded: _Loaded, root: Path) -> list[MultiViewDataset]:
 
 def _choose_2d(
     loaded: _Loaded, root: Path, two_d: str, keypoints, seed: int
-) -> tuple[list[MultiViewDataset], str, str]:
-    """The parts with their 2D input, the header line naming it, and the protocol."""
+) -> tuple[list[MultiViewDataset], str, str, str]:
+    """The parts with their 2D input, the header line naming it, the protocol, and the
+    source in one word (:attr:`EvalSet.two_d`)."""
     rng = np.random.default_rng(seed)
     parts, projected = loaded.parts, _projected_text(seed)
     if keypoints:
         parts = _attach_file(parts, keypoints)
-        return parts, f"2D: user file(s) {', '.join(map(str, keypoints))}", "associate"
+        source = f"2D: user file(s) {', '.join(map(str, keypoints))}"
+        return parts, source, "associate", "keypoints"
     if two_d == "annotations":
         parts = _with_annotations(loaded, root)
-        return parts, "2D: the dataset's 2D ground-truth annotations (score 1)", "given"
+        source = "2D: the dataset's 2D ground-truth annotations (score 1)"
+        return parts, source, "given", "annotations"
     if two_d == "projection":
-        return [keypoints_from_noise_model(p, rng) for p in parts], projected, "given"
+        return [keypoints_from_noise_model(p, rng) for p in parts], projected, "given", "projection"
     if loaded.detector is not None and all(_has_2d(p) for p in parts):
-        return parts, f"2D: {loaded.detector}", "associate"
+        return parts, f"2D: {loaded.detector}", "associate", "detections"
     if two_d == "detections":
         raise InputError(root, "--2d detections", "2D detections in the dataset", "none found")
-    if loaded.detector is not None:
-        loaded.notes.append(
-            f"the dataset's 2D detections hold no keypoint: fell back to {projected}"
-        )
-    return [keypoints_from_noise_model(p, rng) for p in parts], projected, "given"
+    _say_fallback(loaded, root)
+    return [keypoints_from_noise_model(p, rng) for p in parts], projected, "given", "projection"
+
+
+def _say_fallback(loaded: _Loaded, root: Path) -> None:
+    """--2d auto without usable detections: a WARNING and a header note saying why the 2D
+    is the projected ground truth, so the switch of source is never silent."""
+    why = loaded.missing or "its 2D detections hold no keypoint in the evaluated frames"
+    text = (
+        f"--2d auto: {why}, so the 2D is the ground truth projected through the noise "
+        "model, not a detector's output (--2d projection chooses this explicitly)"
+    )
+    log.warning("%s: %s", root, text)
+    loaded.notes.append(text)
 
 
 def load_eval_set(
@@ -425,13 +448,13 @@ def load_eval_set(
         two_d=two_d,
         keypoints=keypoints,
     )
-    parts, source, protocol = _choose_2d(loaded, root, two_d, keypoints, seed)
+    parts, source, protocol, kind = _choose_2d(loaded, root, two_d, keypoints, seed)
     if protocol == "associate" and all(p.num_people == 1 for p in parts):
         protocol = "single"
     if not any(_has_2d(p) for p in parts):
         raise InputError(root, "2D", "2D keypoints in frames with ground truth", "none")
     pcp = dataset in ("shelf", "campus")
-    return EvalSet(tuple(parts), dataset, source, protocol, pcp, tuple(loaded.notes))
+    return EvalSet(tuple(parts), dataset, source, protocol, pcp, tuple(loaded.notes), kind)
 
 
 # --------------------------------------------------------------------------- reprojection

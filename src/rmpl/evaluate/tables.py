@@ -70,7 +70,12 @@ def _pcp_cells(ev: Evaluation, entries: list[np.ndarray]) -> dict[str, float]:
 
 
 def results_rows(ev: Evaluation) -> list[dict]:
-    """One row per view setting, condition and method (metrics averaged over subsets)."""
+    """One row per view setting, condition and method (metrics averaged over subsets).
+
+    The last column, ``2d_source``, names the methods' 2D input ("detections",
+    "annotations", "projection" or "keypoints"; "none" for finished results).
+    """
+    two_d = "none" if ev.scored else ev.evset.two_d
     rows = []
     conds = ev.config.conditions()
     for label in ev.view_sets:
@@ -90,6 +95,7 @@ def results_rows(ev: Evaluation) -> list[dict]:
                 if ev.evset.pcp:
                     row |= _pcp_cells(ev, entries)
                 row["dropout"], row["calib_noise"] = condition_label(p, calib)
+                row["2d_source"] = two_d
                 rows.append(row)
     return rows
 
