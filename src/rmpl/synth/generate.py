@@ -596,18 +596,7 @@ def generate(
     cache_dir = cache_dir or os.environ.get("ANNY_CACHE_DIR")
     _check_same_config(out, cfg)
     bank = _prepare_bank(cfg, out)
-    bank_info = {}
-    if bank is not None:
-        from rmpl.synth.retarget import load_pose_bank
-
-        b = load_pose_bank(bank)
-        subj, counts = np.unique(b.subject, return_counts=True)
-        bank_info = {
-            "pose_bank": {
-                "poses": len(b),
-                "subjects": dict(zip(subj.tolist(), counts.tolist(), strict=True)),
-            }
-        }
+    bank_info = _bank_info(bank)
     _write_manifest(out, cfg, cfg.detector, {"status": "running", **bank_info})
     todo = [
         i for i in range(cfg.num_shards) if not _shard_ok(shard_path(out, i), _shard_meshes(cfg, i))
@@ -616,7 +605,6 @@ def generate(
     if done:
         log.info("%s: %d of %d shards already done, resuming", out, done, cfg.num_shards)
     t0 = time.time()
-    new_views = 0
     bar = tqdm(
         total=cfg.num_shards,
         initial=done,
@@ -625,41 +613,103 @@ def generate(
         disable=not progress,
         dynamic_ncols=True,
     )
-    cfg_dict = asdict(cfg)
-    bank_s = str(bank) if bank else None
-    if not todo:
-        pass
-    elif ray_address:
-        import ray
-
-        if ray_address == "local":
-            ray.init(num_cpus=max(workers, 1), include_dashboard=False, ignore_reinit_error=True)
-        else:
-            ray.init(address=ray_address, ignore_reinit_error=True)
-        task = ray.remote(num_cpus=1)(_ray_shard)
-        pending = [task.remote(cfg_dict, bank_s, cache_dir, i, str(out.resolve())) for i in todo]
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            new_views += ray.get(ready[0])["views"]
-            bar.update(1)
-    elif workers <= 1:
-        worker = Worker(cfg, bank, cache_dir)
-        try:
-            for i in todo:
-                new_views += generate_shard(worker, i, out)["views"]
-                bar.update(1)
-        finally:
-            worker.close()
-    else:
-        import multiprocessing as mp
-
-        ctx = mp.get_context("spawn")  # fresh processes: one EGL context each
-        with ctx.Pool(workers, _init_pool, (cfg_dict, bank_s, cache_dir)) as pool:
-            for stats in pool.imap_unordered(_pool_shard, [(i, str(out)) for i in todo]):
-                new_views += stats["views"]
-                bar.update(1)
+    runner = _run_on_ray if ray_address else _run_in_process if workers <= 1 else _run_in_pool
+    new_views = 0
+    if todo:
+        new_views = runner(cfg, out, todo, bank, cache_dir, bar, workers, ray_address)
     bar.close()
-    elapsed = time.time() - t0
+    return _finish(cfg, out, bank_info, new_views, time.time() - t0, workers)
+
+
+def _bank_info(bank: Path | None) -> dict:
+    """The manifest's description of the pose bank: poses per subject."""
+    if bank is None:
+        return {}
+    from rmpl.synth.retarget import load_pose_bank
+
+    b = load_pose_bank(bank)
+    subj, counts = np.unique(b.subject, return_counts=True)
+    subjects = dict(zip(subj.tolist(), counts.tolist(), strict=True))
+    return {"pose_bank": {"poses": len(b), "subjects": subjects}}
+
+
+def _run_on_ray(
+    cfg: GenerateConfig,
+    out: Path,
+    todo: list[int],
+    bank: Path | None,
+    cache_dir: str | None,
+    bar,
+    workers: int,
+    ray_address: str | None,
+) -> int:
+    """Generate the shards ``todo`` as Ray tasks; returns the number of views made."""
+    import ray
+
+    if ray_address == "local":
+        ray.init(num_cpus=max(workers, 1), include_dashboard=False, ignore_reinit_error=True)
+    else:
+        ray.init(address=ray_address, ignore_reinit_error=True)
+    task = ray.remote(num_cpus=1)(_ray_shard)
+    cfg_dict, bank_s = asdict(cfg), str(bank) if bank else None
+    pending = [task.remote(cfg_dict, bank_s, cache_dir, i, str(out.resolve())) for i in todo]
+    new_views = 0
+    while pending:
+        ready, pending = ray.wait(pending, num_returns=1)
+        new_views += ray.get(ready[0])["views"]
+        bar.update(1)
+    return new_views
+
+
+def _run_in_process(
+    cfg: GenerateConfig,
+    out: Path,
+    todo: list[int],
+    bank: Path | None,
+    cache_dir: str | None,
+    bar,
+    workers: int,
+    ray_address: str | None,
+) -> int:
+    """Generate the shards ``todo`` one after another in this process."""
+    worker = Worker(cfg, bank, cache_dir)
+    new_views = 0
+    try:
+        for i in todo:
+            new_views += generate_shard(worker, i, out)["views"]
+            bar.update(1)
+    finally:
+        worker.close()
+    return new_views
+
+
+def _run_in_pool(
+    cfg: GenerateConfig,
+    out: Path,
+    todo: list[int],
+    bank: Path | None,
+    cache_dir: str | None,
+    bar,
+    workers: int,
+    ray_address: str | None,
+) -> int:
+    """Generate the shards ``todo`` in ``workers`` local processes."""
+    import multiprocessing as mp
+
+    cfg_dict, bank_s = asdict(cfg), str(bank) if bank else None
+    ctx = mp.get_context("spawn")  # fresh processes: one EGL context each
+    new_views = 0
+    with ctx.Pool(workers, _init_pool, (cfg_dict, bank_s, cache_dir)) as pool:
+        for stats in pool.imap_unordered(_pool_shard, [(i, str(out)) for i in todo]):
+            new_views += stats["views"]
+            bar.update(1)
+    return new_views
+
+
+def _finish(
+    cfg: GenerateConfig, out: Path, bank_info: dict, new_views: int, elapsed: float, workers: int
+) -> dict:
+    """Summarise the shards in ``out``, write the final manifest and log the run's rate."""
     summary = summarize(out)
     rate = new_views / elapsed if elapsed > 0 and new_views else 0.0
     summary["this_run"] = {
