@@ -1,9 +1,17 @@
 """rmpl: the Ray-based Multi-view 2D-to-3D Pose Lifter.
 
-Two lines to a 3D skeleton::
+A few lines to a 3D skeleton, here on the walk example shipped with rmpl (4 cameras). A
+keypoint file holds (T, V, P, J, 2) pixels: P people per view, not yet associated across
+views; the lifter takes one person, (T, V, J, 2), so pass person ``p`` as ``[:, :, p]``
+(``rmpl run`` associates and tracks several people)::
 
-    rig, kp = rmpl.load_rig("calib.toml"), rmpl.load_keypoints("keypoints.json")
-    poses = rmpl.Lifter.from_pretrained().lift(kp.keypoints, kp.scores, rig)
+    >>> import rmpl
+    >>> from rmpl.cli.example import EXAMPLE
+    >>> rig = rmpl.load_rig(EXAMPLE / "calibration.toml")
+    >>> kp = rmpl.load_keypoints(EXAMPLE / "keypoints.json")
+    >>> result = rmpl.Lifter.from_pretrained().lift(kp.keypoints[:, :, 0], kp.scores[:, :, 0], rig)
+    >>> result.points.shape  # (T, J, 3): world metres per frame and joint
+    (60, 17, 3)
 """
 
 from __future__ import annotations

@@ -165,48 +165,47 @@ class Lifter:
         """Lift 2D keypoints from calibrated views to 3D.
 
         Args:
-            keypoints: pixels, shape (*, V, J, 2); NaN = missing.
+            keypoints: pixels, shape (*, V, J, 2); NaN = missing. One person: for a file's
+                (T, V, P, J, 2) keypoints pass ``keypoints[:, :, p]``.
             scores: confidences, shape (*, V, J); 0 = missing.
-            rig: the V cameras, in the order of axis -3.
+            rig: the V cameras (a :class:`~rmpl.Rig`, e.g. from :func:`rmpl.load_rig`), in
+                the order of axis -3.
             up: world up direction (3,); estimated from the rig when None.
             batch_size: frames per forward pass (128 keeps a 10,000-frame, 4-view lift
                 under 1 GB of memory at no cost in speed on 2 cores).
             progress: show a progress bar.
 
+        Keypoints more than one image size outside their image (cameras with a known
+        size; :data:`rmpl.io.keypoints.FAR_MARGIN`) are treated as missing, with a warning.
+
         Returns:
             :class:`LiftResult` with points (*, J, 3) in world metres.
 
         Raises:
-            InputError: wrong shapes, views not matching the rig, or no keypoint at all.
+            InputError: wrong types or shapes (a people axis is named as such), views not
+                matching the rig, a bad ``up`` or ``batch_size``, or no keypoint at all.
         """
-        kp = np.asarray(keypoints, dtype=float)
-        sc = np.asarray(scores, dtype=float)
-        J = self.num_joints
-        if kp.ndim < 3 or kp.shape[-2:] != (J, 2):
-            raise InputError(None, "keypoints", f"shape (*, V, {J}, 2)", kp.shape)
-        if sc.shape != kp.shape[:-1]:
-            raise InputError(None, "scores", f"shape {kp.shape[:-1]} matching keypoints", sc.shape)
-        if kp.shape[-3] != len(rig):
-            raise InputError(
-                None,
-                "keypoints",
-                f"{len(rig)} views to match the calibration's cameras {rig.names}",
-                f"{kp.shape[-3]} views",
-            )
-        ok = np.isfinite(kp).all(-1) & np.isfinite(sc) & (sc > 0)
+        kp, sc = self._checked(keypoints, scores, rig, up, batch_size)
+        ok = np.isfinite(kp).all(-1) & (sc > 0)
         if not ok.any():
             raise InputError(
                 None, "scores", "at least one keypoint with confidence > 0", "all zero"
             )
-        lead = kp.shape[:-3]
-        V = kp.shape[-3]
-        rays = rays_from_keypoints(np.where(ok[..., None], kp, 0.0), rig)
+        lead, (V, J) = kp.shape[:-3], kp.shape[-3:-1]
         Rc = rotation_to_z(estimate_up(rig) if up is None else np.asarray(up, float))
-        o = rays[..., :3] @ Rc.T
-        d = rays[..., 3:] @ Rc.T
-        rays = np.concatenate([o, d], -1).reshape(-1, V, J, 6).astype(np.float32)
+        rays = rays_from_keypoints(np.where(ok[..., None], kp, 0.0), rig)
+        rays = np.concatenate([rays[..., :3] @ Rc.T, rays[..., 3:] @ Rc.T], -1)
+        rays = rays.reshape(-1, V, J, 6).astype(np.float32)  # one row per frame
         s = np.where(ok, np.clip(sc, 0, 1), 0.0).reshape(-1, V, J).astype(np.float32)
-        out = np.empty((rays.shape[0], J, 3), np.float32)
+        out = self._batched(rays, s, batch_size, progress)
+        points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
+        empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
+        points[empty] = np.nan
+        return LiftResult(points, ok.sum(-2))
+
+    def _batched(self, rays: np.ndarray, s: np.ndarray, batch_size: int, progress: bool):
+        """The network on (N, V, J, 6) rays, ``batch_size`` rows at a time: (N, J, 3)."""
+        out = np.empty((rays.shape[0], rays.shape[2], 3), np.float32)
         starts = range(0, rays.shape[0], batch_size)
         if progress:
             from tqdm import tqdm
@@ -215,7 +214,53 @@ class Lifter:
         for i in starts:
             sl = slice(i, i + batch_size)
             out[sl] = self._forward(rays[sl], s[sl])
-        points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
-        empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
-        points[empty] = np.nan
-        return LiftResult(points, ok.sum(-2))
+        return out
+
+    def _checked(self, keypoints, scores, rig, up, batch_size) -> tuple[np.ndarray, np.ndarray]:
+        """Validate :meth:`lift`'s arguments; keypoints far outside the image become missing."""
+        from rmpl.io.keypoints import FAR_MARGIN, _floats, drop_far_keypoints
+
+        if not isinstance(rig, Rig):
+            raise InputError(
+                None, "rig", "an rmpl.Rig (rmpl.load_rig(path) reads a calibration file)",
+                type(rig).__name__,
+            )  # fmt: skip
+        if isinstance(batch_size, bool) or not isinstance(batch_size, int | np.integer):
+            raise InputError(None, "batch_size", "an integer >= 1", repr(batch_size))
+        if batch_size < 1:
+            raise InputError(None, "batch_size", "an integer >= 1", batch_size)
+        if up is not None:
+            u = _floats(up, "up")
+            if u.shape != (3,) or not np.isfinite(u).all() or not np.linalg.norm(u) > 0:
+                raise InputError(None, "up", "a finite, non-zero 3-vector", u.tolist())
+        kp, sc = _floats(keypoints, "keypoints"), _floats(scores, "scores")
+        self._check_shapes(kp, sc, rig)
+        seen = np.isfinite(kp).all(-1) & np.isfinite(sc)
+        kp, sc, far = drop_far_keypoints(kp, np.where(seen, sc, 0.0), rig.sizes)
+        if far:
+            log.warning(
+                "%d keypoints lie more than %g image size beyond their image: treated as "
+                "missing", far, FAR_MARGIN,
+            )  # fmt: skip
+        return kp, sc
+
+    def _check_shapes(self, kp: np.ndarray, sc: np.ndarray, rig: Rig) -> None:
+        J, V = self.num_joints, len(rig)
+        if kp.ndim < 3 or kp.shape[-2:] != (J, 2):
+            raise InputError(None, "keypoints", f"shape (*, V, {J}, 2)", kp.shape)
+        if kp.shape[-3] != V and kp.ndim >= 4 and kp.shape[-4] == V:
+            raise InputError(
+                None, "keypoints",
+                f"shape (*, V, {J}, 2), one person: this has a people axis after the {V} "
+                "views (T, V, P, J, 2); lift one person, keypoints[:, :, p] and scores[:, :, p]",
+                kp.shape,
+            )  # fmt: skip
+        if kp.shape[-3] != V:
+            raise InputError(
+                None,
+                "keypoints",
+                f"{V} views to match the calibration's cameras {rig.names}",
+                f"{kp.shape[-3]} views",
+            )
+        if sc.shape != kp.shape[:-1]:
+            raise InputError(None, "scores", f"shape {kp.shape[:-1]} matching keypoints", sc.shape)

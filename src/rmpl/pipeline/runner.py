@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
+from rmpl.io.keypoints import FAR_MARGIN, drop_far_keypoints
 from rmpl.io.poses import JointSource, Poses3D
 from rmpl.pipeline.association import Association, AssociationConfig, associate
 
@@ -88,6 +90,18 @@ class RunConfig:
             raise ValueError(f"filter must be one of {FILTERS}, got {self.filter!r}")
         if self.min_track_frames < 1:
             raise ValueError(f"min_track_frames must be >= 1, got {self.min_track_frames}")
+        _check_range("cutoff", self.cutoff, 0.0, None, "a frequency > 0 Hz")
+        _check_range("max_gap", self.max_gap, 0, None, "a number of frames >= 0", closed=True)
+        if self.min_score is not None:
+            _check_range("min_score", self.min_score, 0, 1, "a confidence in [0, 1]", closed=True)
+        _check_range("max_error", self.max_error, 0.0, None, "a reprojection error > 0 pixels")
+
+
+def _check_range(name, value, lo, hi, expected: str, closed: bool = False) -> None:
+    """``lo < value`` (``<=`` when closed) and ``value <= hi``; NaN is out of range."""
+    ok = value >= lo if closed else value > lo
+    if not (ok and (hi is None or value <= hi)):
+        raise ValueError(f"{name} must be {expected}, got {value}")
 
 
 def associate_frames(
@@ -252,13 +266,38 @@ def smooth(
         x, interpolated = temporal.fill_gaps(x, max_gap=config.max_gap)
     if config.filter != "none" and fps is None:
         log.warning("no frame rate known (give --fps): skipping the %s filter", config.filter)
-    elif config.filter == "butterworth" and fps is not None and config.cutoff < fps / 2:
+    elif config.filter == "butterworth" and fps is not None:
+        check_cutoff(config.cutoff, fps)
         x = temporal.butterworth(x, fps, cutoff=config.cutoff, order=config.order)
     elif config.filter == "one-euro" and fps is not None:
         x = temporal.one_euro(
             x, fps, min_cutoff=config.one_euro_min_cutoff, beta=config.one_euro_beta
         )
     return x, interpolated & np.isfinite(x).all(-1)
+
+
+def check_cutoff(cutoff: float, fps: float) -> None:
+    """A Butterworth cut-off must be below the Nyquist frequency ``fps / 2``."""
+    if not cutoff < fps / 2:
+        raise InputError(
+            None,
+            "--cutoff",
+            f"a Butterworth cut-off below the Nyquist frequency fps / 2 = {fps / 2:g} Hz "
+            f"(at {fps:g} frames/s), or --filter none",
+            f"{cutoff:g} Hz",
+        )
+
+
+def drop_far(keypoints: np.ndarray, scores: np.ndarray, rig: Rig):
+    """Keypoints (T, V, P, J, 2) far outside their image become missing, with a warning."""
+    kp, sc, far = drop_far_keypoints(keypoints, scores, rig.sizes, view_axis=-4)
+    if far:
+        log.warning(
+            "%d of %d keypoints (%.2g%%) lie more than %g image size beyond their image: "
+            "treated as missing", far, int((scores > 0).sum()),
+            100 * far / max(1, int((scores > 0).sum())), FAR_MARGIN,
+        )  # fmt: skip
+    return kp, sc
 
 
 def run(
@@ -273,6 +312,10 @@ def run(
 ) -> Poses3D:
     """The whole chain on 2D input (T, V, P, J, 2) + scores (T, V, P, J).
 
+    Keypoints more than one image size beyond their image (cameras with a known size) are
+    treated as missing and counted in a warning; a Butterworth cut-off at or above the
+    Nyquist frequency is refused (InputError).
+
     Args:
         temporal: apply :func:`smooth` (outliers, gaps, filter); False keeps raw estimates.
 
@@ -281,6 +324,9 @@ def run(
     """
     cfg = config or RunConfig()
     T = keypoints.shape[0]
+    if temporal and cfg.filter == "butterworth" and fps is not None:
+        check_cutoff(cfg.cutoff, fps)  # before the long part
+    keypoints, scores = drop_far(keypoints, scores, rig)
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
     pts, nv = estimate(people, rig, cfg, progress=progress)
     tracks, views, ids = track_people(pts, nv, cfg)
