@@ -21,6 +21,28 @@ log = logging.getLogger(__name__)
 OUTPUT_SUFFIXES = (".npz", ".json", ".trc", ".c3d")
 
 
+def _number(kind, test, expected: str):
+    """An argparse ``type`` refusing impossible values at parse time (exit 2, usage line)."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+        if not test(value):
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text}")
+        return value
+
+    parse.__name__ = expected  # argparse names the type in its messages
+    return parse
+
+
+positive = _number(float, lambda x: x > 0 and x < float("inf"), "a number > 0")
+fraction = _number(float, lambda x: 0 <= x <= 1, "a confidence in [0, 1]")
+count = _number(int, lambda x: x >= 0, "an integer >= 0")
+at_least_one = _number(int, lambda x: x >= 1, "an integer >= 1")
+
+
 def add_io_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--calib", required=True, help="calibration file or folder (any supported format)"
@@ -37,7 +59,7 @@ def add_io_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--out", required=True, help=f"output file: {', '.join(OUTPUT_SUFFIXES)}")
     parser.add_argument(
-        "--fps", type=float, default=None, help="frame rate for TRC/C3D if the input has none"
+        "--fps", type=positive, default=None, help="frame rate for TRC/C3D if the input has none"
     )
 
 
@@ -173,25 +195,60 @@ def load_calibration_and_2d(args: argparse.Namespace, cache: Path | None = None)
 
     rig = load_rig(args.calib)
     kp = _load_2d(args, cache)
-    keypoints, scores = kp.keypoints, kp.scores
-    V = keypoints.shape[1]
-    views = list(kp.views)
-    source = ", ".join(args.keypoints) if getattr(args, "keypoints", None) else "2D input"
-    if set(views) == set(rig.names) and views != rig.names:
-        order = [views.index(n) for n in rig.names]
-        keypoints, scores = keypoints[:, order], scores[:, order]
-    elif V != len(rig):
+    keypoints, scores = _match_views(kp, rig, args)
+    source = _source(args)
+    if not (scores > 0).any():
+        raise InputError(source, "scores", "at least one keypoint with confidence > 0", "all zero")
+    return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or args.fps)
+
+
+def _source(args: argparse.Namespace) -> str:
+    return ", ".join(args.keypoints) if getattr(args, "keypoints", None) else "2D input"
+
+
+def _match_views(kp, rig: Rig, args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
+    """Keypoints and scores with the views in the rig's order: by name when every view
+    names a camera, by order (with a warning) when none does; a partial match is refused."""
+    views, V = list(kp.views), kp.keypoints.shape[1]
+    if V != len(rig):
         raise InputError(
-            source,
+            _source(args),
             "views",
             f"{len(rig)} views to match the cameras {rig.names} of {args.calib}",
             f"{V} views {views}",
         )
-    elif views != rig.names:
-        log.info("matching 2D views %s to cameras %s by order", views, rig.names)
-    if not (scores > 0).any():
-        raise InputError(source, "scores", "at least one keypoint with confidence > 0", "all zero")
-    return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or args.fps)
+    if set(views) == set(rig.names):
+        order = [views.index(n) for n in rig.names]
+        return kp.keypoints[:, order], kp.scores[:, order]
+    if set(views) & set(rig.names):
+        raise InputError(
+            _source(args),
+            "views",
+            f"view names that all match the cameras of {args.calib} (or none, to pair by "
+            f"order): views {sorted(set(views) - set(rig.names))} have no camera, cameras "
+            f"{sorted(set(rig.names) - set(views))} no view",
+            views,
+        )
+    log.warning("no 2D view is named like a camera: pairing views %s with cameras %s by "
+                "order", views, rig.names)  # fmt: skip
+    return kp.keypoints, kp.scores
+
+
+def check_estimated(poses, args: argparse.Namespace, method: str) -> None:
+    """A result with no joint at all is an error (exit 2), not an empty file."""
+    if np.isfinite(poses.points).any():
+        return
+    why = (
+        "no frame in which two views see the same joint" if method != "rmpl"
+        else "no frame with a keypoint"
+    )  # fmt: skip
+    raise InputError(_source(args), None, "2D input from which some joint can be estimated",
+                     f"nothing estimated ({why})")  # fmt: skip
+
+
+def check_cameras(rig: Rig, calib: str, method: str) -> None:
+    if method != "rmpl" and len(rig) < 2:
+        raise InputError(calib, "cameras", "at least 2 cameras to triangulate", len(rig))
 
 
 def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
@@ -202,10 +259,12 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
 
     out = check_output(args.out)
     inputs = load_calibration_and_2d(args)
+    check_cameras(inputs.rig, args.calib, method)
     cfg = RunConfig(method=method, **config)
     poses = run(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg, temporal=False
     )
+    check_estimated(poses, args, method)
     if out.suffix.lower() in (".trc", ".c3d") and not poses.fps:
         raise InputError(out, "fps", "a frame rate for TRC/C3D (the input has none: pass --fps)")
     save_poses(poses, out)

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rmpl.cli._common import MODEL_HELP
+from rmpl.cli._common import MODEL_HELP, at_least_one, count, positive
 
 log = logging.getLogger(__name__)
 
@@ -63,15 +63,21 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"
     )
-    parser.add_argument("--fps", type=float, default=None, help="frame rate if the input has none")
+    parser.add_argument(
+        "--fps", type=positive, default=None, help="frame rate if the input has none"
+    )
     parser.add_argument(
         "--filter", default="butterworth", choices=["butterworth", "one-euro", "none"]
     )
-    parser.add_argument("--cutoff", type=float, default=6.0, help="Butterworth cut-off, Hz")
-    parser.add_argument("--max-gap", type=int, default=20, help="fill gaps up to N frames (0: off)")
+    parser.add_argument(
+        "--cutoff", type=positive, default=6.0, help="Butterworth cut-off, Hz (below fps / 2)"
+    )
+    parser.add_argument(
+        "--max-gap", type=count, default=20, help="fill gaps up to N frames (0: off)"
+    )
     parser.add_argument(
         "--min-track",
-        type=int,
+        type=at_least_one,
         default=3,
         help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
     )
@@ -107,16 +113,12 @@ def _formats(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rmpl.cli._common import load_calibration_and_2d
+    from rmpl.cli._common import check_cameras, check_estimated, load_calibration_and_2d
     from rmpl.cli.lift import axis_vector
     from rmpl.pipeline.runner import RunConfig
     from rmpl.pipeline.runner import run as run_pipeline
 
     formats = _formats(args.formats)
-    if args.min_track < 1:
-        from rmpl.errors import InputError
-
-        raise InputError(None, "--min-track", "a number of frames >= 1", args.min_track)
     out = Path(args.out)
     up = axis_vector(args.up)
     cfg = RunConfig(
@@ -129,9 +131,11 @@ def run(args: argparse.Namespace) -> int:
         up=None if up is None else tuple(up),
     )
     inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
+    check_cameras(inputs.rig, args.calib, args.method)
     poses = run_pipeline(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
     )
+    check_estimated(poses, args, args.method)
     overlays = None
     if (args.videos or args.images) and not args.no_overlay:
         overlays = functools.partial(write_input_overlays, args, poses, inputs)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from rmpl.cli._common import add_io_arguments, run_single_method
+from rmpl.cli._common import add_io_arguments, fraction, positive, run_single_method
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -23,11 +23,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--min-score",
-        type=float,
+        type=fraction,
         default=None,
         help="ignore keypoints below this confidence (default 0, or 0.3 with --robust)",
     )
-    parser.add_argument("--max-error", type=float, default=15.0, help="pixels, with --robust")
+    parser.add_argument("--max-error", type=positive, default=15.0, help="pixels, with --robust")
     parser.add_argument(
         "--no-swap", action="store_true", help="with --robust: skip the left/right swap check"
     )
