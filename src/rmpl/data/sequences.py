@@ -68,7 +68,7 @@ class SequenceBank:
         """The segments where ``keep`` (bool, shape (S,)) is True."""
         starts, lengths = self.start[keep], self.length[keep]
         parts = [self.poses[s : s + n] for s, n in zip(starts, lengths, strict=True)]
-        new_start = np.cumsum(np.r_[0, lengths[:-1]]).astype(np.int64)
+        new_start = (np.cumsum(lengths) - lengths).astype(np.int64)
         poses = np.concatenate(parts) if parts else self.poses[:0]
         return SequenceBank(poses, new_start, lengths.copy(), self.subject[keep], self.fps)
 

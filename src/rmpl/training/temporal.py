@@ -49,7 +49,8 @@ class TemporalTrainConfig:
         frame_model: the per-frame checkpoint: a shipped name or a directory.
         holdout: subjects never trained on (validation).
         steps, batch_size (windows), lr, weight_decay: optimisation.
-        min_views, max_views, single_view_rate: views per batch.
+        min_views, max_views, single_view_rate: views per batch; single_view_weight: the
+            loss weight of one-view batches (their errors are ten times larger).
         nll_weight: weight of the uncertainty's negative log-likelihood.
         val_every, val_size: validation cadence and windows per view count.
         seed, threads, time_limit (seconds, 0 = none; run again to resume).
@@ -66,6 +67,7 @@ class TemporalTrainConfig:
     min_views: int = 1
     max_views: int = 5
     single_view_rate: float = 0.05
+    single_view_weight: float = 0.1
     nll_weight: float = 0.05
     val_every: int = 500
     val_size: int = 64
@@ -283,7 +285,7 @@ class _Run:
         for g in self.opt.param_groups:
             g["lr"] = _lr_at(self.step, cfg)
         loss, nll, _ = loss_terms(self.model, b)
-        total = loss + cfg.nll_weight * nll
+        total = (loss + cfg.nll_weight * nll) * (cfg.single_view_weight if V == 1 else 1.0)
         if not torch.isfinite(total):
             raise RuntimeError(f"non-finite loss at step {self.step}; stopping without saving")
         self.opt.zero_grad(set_to_none=True)
@@ -292,7 +294,8 @@ class _Run:
         self.opt.step()
         self.step += 1
         value = loss.item()
-        self.running = value if self.running is None else 0.98 * self.running + 0.02 * value
+        if V > 1:  # the running loss follows the multi-view batches
+            self.running = value if self.running is None else 0.98 * self.running + 0.02 * value
         return value
 
 
@@ -331,7 +334,8 @@ def train_temporal(cfg: TemporalTrainConfig, out: str | Path) -> Path:
         run.train_step()
         run.elapsed = start_elapsed + time.time() - t_start
         bar.update(1)
-        bar.set_postfix(loss_mm=f"{run.running * 1000:.1f}")
+        if run.running is not None:
+            bar.set_postfix(loss_mm=f"{run.running * 1000:.1f}")
         over_time = cfg.time_limit > 0 and time.time() - t_start > cfg.time_limit
         if run.step % cfg.val_every == 0 or run.step == cfg.steps or over_time:
             _checkpoint(run, sets, summary, bar)
@@ -351,7 +355,7 @@ def _checkpoint(run: _Run, sets: dict, summary: dict, bar) -> None:
     record = {
         "step": run.step,
         "seconds": round(run.elapsed, 1),
-        "train_loss_mm": run.running * 1000,
+        "train_loss_mm": (run.running or math.nan) * 1000,
         "sigma_scale": scale,
         **metrics,
     }

@@ -1,0 +1,200 @@
+"""Temporal training: a tiny run, an exact resume, the checkpoint round trip, the track lifter."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from rmpl.errors import InputError
+from rmpl.geometry.camera import Camera, Rig, look_at
+from rmpl.inference_temporal import TemporalLifter, frame_times, window_starts
+from rmpl.model.lifter import PRESETS, RMPL
+from rmpl.model.temporal import TemporalConfig, TemporalRMPL
+from rmpl.training import temporal as tt
+from rmpl.training.loop import save_checkpoint
+from tests.data.test_sequences import _bank
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    d = tmp_path_factory.mktemp("temporal")
+    torch.manual_seed(0)
+    save_checkpoint(RMPL(PRESETS["tiny"].with_(robust_anchor=1)), d / "frame")
+    _bank().save(d / "seq.npz")
+    cfg = tt.TemporalTrainConfig(
+        sequences=str(d / "seq.npz"),
+        frame_model=str(d / "frame"),
+        steps=4,
+        batch_size=2,
+        val_every=2,
+        val_size=3,
+        min_views=2,
+        max_views=3,
+        model={"dim": 16, "depth": 1, "window": 6},
+    )
+    return d, cfg
+
+
+def _weights(path):
+    from safetensors.torch import load_file
+
+    return load_file(str(path / "model.safetensors"))
+
+
+def test_train_and_resume_equal_an_uninterrupted_run(setup, monkeypatch):
+    d, cfg = setup
+    tt.train_temporal(cfg, d / "full")
+    real = tt._checkpoint
+    calls = []
+
+    def killed_after_first(run, *a):
+        real(run, *a)
+        calls.append(run.step)
+        raise KeyboardInterrupt  # a kill right after the first checkpoint
+
+    monkeypatch.setattr(tt, "_checkpoint", killed_after_first)
+    with pytest.raises(KeyboardInterrupt):
+        tt.train_temporal(cfg, d / "resumed")
+    monkeypatch.setattr(tt, "_checkpoint", real)
+    assert calls == [2]
+    tt.train_temporal(cfg, d / "resumed")
+    a, b = _weights(d / "full"), _weights(d / "resumed")
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    steps = [json.loads(x)["step"] for x in (d / "resumed" / "log.jsonl").read_text().splitlines()]
+    assert steps == [2, 4]
+
+
+def test_a_log_line_without_its_checkpoint_is_not_duplicated(tmp_path):
+    (tmp_path / "log.jsonl").write_text('{"step": 2}\n{"step": 4}\n')
+    tt._write_log(tmp_path, {"step": 4, "x": 1})
+    lines = [json.loads(x) for x in (tmp_path / "log.jsonl").read_text().split("\n") if x]
+    assert lines == [{"step": 2}, {"step": 4, "x": 1}]
+
+
+def test_checkpoint_round_trip(setup):
+    d, cfg = setup
+    model, meta = tt.load_temporal(d / "full")
+    assert meta["format"] == tt.FORMAT and meta["temporal"]["window"] == 6
+    assert meta["training"]["last"]["sigma_scale"] > 0
+    torch.manual_seed(1)
+    rays = torch.randn(1, 6, 2, 17, 6)
+    rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
+    sc, times = torch.rand(1, 6, 2, 17), torch.arange(6.0)[None] / 30
+    tt.save_temporal(model, d / "copy")
+    again, _ = tt.load_temporal(d / "copy")
+    with torch.no_grad():
+        assert torch.equal(model(rays, sc, times)[0], again(rays, sc, times)[0])
+
+
+def test_bad_training_input(setup, tmp_path):
+    _, cfg = setup
+    with pytest.raises(InputError, match="sequences"):
+        tt._load_bank(tt.TemporalTrainConfig(sequences=str(tmp_path / "none.npz")))
+    with pytest.raises(InputError, match="holdout"):
+        tt._load_bank(tt.TemporalTrainConfig(sequences=cfg.sequences, holdout=("99",)))
+    bad = tmp_path / "bad.toml"
+    bad.write_text("stepz = 3\n")
+    with pytest.raises(InputError, match="stepz"):
+        tt.TemporalTrainConfig.from_toml(bad)
+
+
+# --------------------------------------------------------------------------- track lifting
+
+
+def _rig(n=3) -> Rig:
+    K = np.array([[800.0, 0, 640], [0, 800, 360], [0, 0, 1]])
+    eyes = [[4, 0, 1.5], [0, 4, 1.5], [-3, -3, 2.0], [3, -3, 1.0]][:n]
+    return Rig(tuple(Camera(K, *look_at(np.array(e, float), np.array([0, 0, 1.0])), name=f"c{i}")
+                     for i, e in enumerate(eyes)))  # fmt: skip
+
+
+def _track(T=30, n=3, seed=0):
+    rig = _rig(n)
+    b = _bank(segments=1, frames=max(T, 60))
+    joints = b.poses[:T].astype(float) - [0.6, 0, 0]
+    kp = np.stack([c.project(joints) for c in rig], 1)  # (T, V, 17, 2)
+    kp = kp + np.random.default_rng(seed).normal(0, 1.0, kp.shape)
+    return kp, np.full(kp.shape[:-1], 0.9), rig, joints
+
+
+def _lifter(window=8, head=False, seed=0) -> TemporalLifter:
+    torch.manual_seed(seed)
+    frame = RMPL(PRESETS["tiny"])
+    m = TemporalRMPL(frame, TemporalConfig(dim=16, depth=1, window=window))
+    if head:
+        with torch.no_grad():
+            m.head.weight.normal_(0, 0.02)
+    return TemporalLifter(m, onnx=False)
+
+
+def test_stitched_windows_equal_the_per_frame_model_when_the_head_is_zero():
+    """With a zero correction every window gives the same per-frame answer, so stitching
+    must reproduce it exactly (no seam, no weight error)."""
+    kp, sc, rig, _ = _track(T=30)
+    lifter = _lifter(window=8)
+    from rmpl.inference import Lifter
+
+    frame = Lifter(lifter.model.frame_model, backend="torch").lift(kp, sc, rig).points
+    r = lifter.lift_track(kp, sc, rig, fps=30)
+    assert r.points.shape == (30, 17, 3) and r.sigma.shape == (30, 17)
+    assert np.allclose(r.points, frame, atol=1e-5)
+
+
+def test_stitching_is_close_to_one_long_window():
+    kp, sc, rig, _ = _track(T=24)
+    short, long = _lifter(window=8, head=True), _lifter(window=24, head=True)
+    a = short.lift_track(kp, sc, rig, fps=30).points
+    b = long.lift_track(kp, sc, rig, fps=30).points
+    # same weights, different windows: the answers differ by the small learned corrections
+    assert np.nanmax(np.abs(a - b)) < 0.05
+
+
+def test_missing_frames_are_filled_and_do_not_spread_nan():
+    kp, sc, rig, _ = _track(T=20)
+    kp[5:8] = np.nan
+    sc[5:8] = 0
+    r = _lifter().lift_track(kp, sc, rig, fps=30)
+    assert np.isfinite(r.points).all() and np.isfinite(r.sigma).all()
+    assert (r.num_views[5:8] == 0).all() and (r.num_views[0] == 3).all()
+
+
+def test_fps_and_times_are_the_same_thing():
+    kp, sc, rig, _ = _track(T=12)
+    lifter = _lifter(head=True)
+    a = lifter.lift_track(kp, sc, rig, fps=25).points
+    b = lifter.lift_track(kp, sc, rig, times=np.arange(12) / 25 + 7.0).points
+    assert np.allclose(a, b, atol=1e-4)
+
+
+def test_bad_track_input():
+    kp, sc, rig, _ = _track(T=10)
+    lifter = _lifter()
+    with pytest.raises(InputError, match="at least one frame"):
+        lifter.lift_track(kp[:0], sc[:0], rig, fps=30)
+    with pytest.raises(InputError, match="fps"):
+        lifter.lift_track(kp, sc, rig, fps=0)
+    with pytest.raises(InputError, match="fps / times"):
+        lifter.lift_track(kp, sc, rig)
+    with pytest.raises(InputError, match="scores"):
+        lifter.lift_track(kp, sc[:-1], rig, fps=30)
+    with pytest.raises(InputError, match="times"):
+        lifter.lift_track(kp, sc, rig, times=np.arange(9.0))
+    with pytest.raises(InputError, match="times"):
+        lifter.lift_track(kp, sc, rig, times=np.zeros(10))
+    with pytest.raises(InputError, match="one track"):
+        lifter.lift_track(kp[None], sc[None], rig, fps=30)
+    with pytest.raises(InputError, match="views"):
+        lifter.lift_track(kp[:, :2], sc[:, :2], rig, fps=30)
+
+
+def test_window_starts_cover_every_frame_once_or_more():
+    for T, W in [(5, 8), (8, 8), (9, 8), (30, 8), (31, 7)]:
+        starts = window_starts(T, W)
+        covered = np.zeros(T, int)
+        for a in starts:
+            covered[a : a + min(W, T)] += 1
+        assert (covered >= 1).all() and starts[-1] + min(W, T) == T
+    assert np.allclose(frame_times(3, 10.0, None), [0, 0.1, 0.2])
