@@ -122,29 +122,40 @@ def _load_2d(args: argparse.Namespace, cache: Path | None):
     """Read 2D files, or detect people in videos/images (cached in ``cache``, with the
     fingerprint of the inputs beside it in ``<cache>.inputs.json``: a cache made from other
     inputs, or by another detector, is not reused)."""
-    import json
-
-    from rmpl.io.atomic import atomic_path
-    from rmpl.io.keypoints import load_keypoints, save_keypoints
+    from rmpl.io.keypoints import load_keypoints
 
     if getattr(args, "keypoints", None):
         shelf = _shelf4d_root(args.keypoints)
         if shelf is not None:
             return _shelf4d_keypoints(shelf)
         return load_keypoints(args.keypoints, skeleton=args.skeleton)
-    from rmpl.io.calibration import load_rig
-    from rmpl.pipeline.detect2d import (
-        check_image_folders,
-        check_videos,
-        detect_images,
-        detect_videos,
-        input_fingerprint,
-    )
+    from rmpl.pipeline.detect2d import detect_images, detect_videos
 
     kind = "videos" if getattr(args, "videos", None) else "images"
     sources = args.videos if kind == "videos" else args.images
     detector = getattr(args, "detector", None) or "mediapipe"
-    # Every check that can fail comes before the (long) detection.
+    stamp = _check_detection_inputs(args, kind, sources, detector)
+    stamp_path = None if cache is None else cache.with_name(cache.stem + ".inputs.json")
+    if cache is not None and cache.is_file():
+        if _same_stamp(stamp_path, stamp):
+            log.info("using cached 2D detections %s (delete it to detect again)", cache)
+            return load_keypoints(cache)
+        log.info("%s was made from other inputs: detecting again", cache)
+    resume = None if cache is None else cache.parent / ".detect2d"
+    if kind == "videos":
+        kp = detect_videos(sources, detector, cache_dir=resume)
+    else:
+        kp = detect_images(sources, detector, fps=args.fps, cache_dir=resume)
+    if cache is not None:
+        _save_cache(kp, cache, stamp_path, stamp, resume)
+    return kp
+
+
+def _check_detection_inputs(args, kind: str, sources: list[str], detector: str) -> dict:
+    """Every check that can fail, before the (long) detection; returns the inputs' stamp."""
+    from rmpl.io.calibration import load_rig
+    from rmpl.pipeline.detect2d import check_image_folders, check_videos, input_fingerprint
+
     if kind == "videos":
         check_videos(sources)
     else:
@@ -157,36 +168,37 @@ def _load_2d(args: argparse.Namespace, cache: Path | None):
             f"one camera per {kind[:-1]}: {len(sources)} cameras for {', '.join(sources)}",
             f"{len(rig)} cameras {rig.names}",
         )
-    stamp = {
+    return {
         "kind": kind,
         "detector": detector,
         "fps": None if kind == "videos" else args.fps,
         "inputs": input_fingerprint(sources, kind),
     }
-    stamp_path = None if cache is None else cache.with_name(cache.stem + ".inputs.json")
-    if cache is not None and cache.is_file():
-        try:
-            same = json.loads(stamp_path.read_text(encoding="utf-8")) == stamp
-        except (OSError, ValueError):
-            same = False
-        if same:
-            log.info("using cached 2D detections %s (delete it to detect again)", cache)
-            return load_keypoints(cache)
-        log.info("%s was made from other inputs: detecting again", cache)
-    resume = None if cache is None else cache.parent / ".detect2d"
-    if kind == "videos":
-        kp = detect_videos(sources, detector, cache_dir=resume)
-    else:
-        kp = detect_images(sources, detector, fps=args.fps, cache_dir=resume)
-    if cache is not None:
-        save_keypoints(kp, cache)
-        with atomic_path(stamp_path) as tmp:
-            tmp.write_text(json.dumps(stamp, indent=1), encoding="utf-8")
-        for f in resume.glob("*.npz"):  # the per-view partial results are in the cache now
-            f.unlink()
-        if resume.is_dir() and not any(resume.iterdir()):
-            resume.rmdir()
-    return kp
+
+
+def _same_stamp(stamp_path: Path, stamp: dict) -> bool:
+    import json
+
+    try:
+        return json.loads(stamp_path.read_text(encoding="utf-8")) == stamp
+    except (OSError, ValueError):
+        return False
+
+
+def _save_cache(kp, cache: Path, stamp_path: Path, stamp: dict, resume: Path) -> None:
+    """The detections and their inputs' stamp; the per-view partial results go."""
+    import json
+
+    from rmpl.io.atomic import atomic_path
+    from rmpl.io.keypoints import save_keypoints
+
+    save_keypoints(kp, cache)
+    with atomic_path(stamp_path) as tmp:
+        tmp.write_text(json.dumps(stamp, indent=1), encoding="utf-8")
+    for f in resume.glob("*.npz"):  # the per-view partial results are in the cache now
+        f.unlink()
+    if resume.is_dir() and not any(resume.iterdir()):
+        resume.rmdir()
 
 
 def load_calibration_and_2d(args: argparse.Namespace, cache: Path | None = None) -> Inputs:

@@ -412,6 +412,25 @@ def load_keypoints(
             the message names the file and the field.
     """
     named = _named_paths(paths)
+    format = _check_load_arguments(named, format, skeleton, to)
+    if format == "rmpl":
+        return _load_rmpl(named, to, fps)
+    named = _expand_view_dirs(named)
+    if format == "openpose":
+        hint, file_fps = _pose2sim_config(named[0][1]) if named[0][1].is_dir() else (None, None)
+        native = skeleton or hint
+        per_view, num_joints = _read_views(named, native, _read_openpose_view)
+    else:
+        native, file_fps = skeleton, None
+        per_view, num_joints = _read_views(named, native, _read_coco_view)
+    if native is None:
+        native = _BY_COUNT[num_joints] if num_joints else (to or "coco17")
+    fps = fps if fps is not None else file_fps
+    return _assemble(per_view, [n for n, _ in named], native, to, fps)
+
+
+def _check_load_arguments(named, format: str | None, skeleton: str | None, to: str | None) -> str:
+    """The paths exist and the options are known; returns the format (detected when None)."""
     for _, p in named:
         if not p.exists():
             raise InputError(p, None, "an existing file or directory", "no such path")
@@ -427,30 +446,19 @@ def load_keypoints(
     if skeleton is not None and _num_joints_or_none(skeleton) is None:
         known = sorted(set(SKELETONS) | set(_FOREIGN))
         raise InputError(None, "skeleton", f"None or one of {known}", repr(skeleton))
+    return format
 
-    if format == "rmpl":
-        if len(named) != 1:
-            raise InputError(None, "paths", "a single rmpl .npz or .json file", len(named))
-        kp = _read_rmpl(named[0][1])
-        if fps is not None:
-            kp.fps = _check_fps(fps)
-        if to is None or to == kp.skeleton:
-            return kp
-        xy, sc, name = _convert(kp.keypoints, kp.scores, kp.skeleton, to)
-        return Keypoints2D(xy, sc, name, kp.views, kp.frames, kp.fps)
 
-    named = _expand_view_dirs(named)
-    if format == "openpose":
-        hint, file_fps = _pose2sim_config(named[0][1]) if named[0][1].is_dir() else (None, None)
-        native = skeleton or hint
-        per_view, num_joints = _read_views(named, native, _read_openpose_view)
-    else:
-        native, file_fps = skeleton, None
-        per_view, num_joints = _read_views(named, native, _read_coco_view)
-    if native is None:
-        native = _BY_COUNT[num_joints] if num_joints else (to or "coco17")
-    fps = fps if fps is not None else file_fps
-    return _assemble(per_view, [n for n, _ in named], native, to, fps)
+def _load_rmpl(named, to: str | None, fps: float | None) -> Keypoints2D:
+    if len(named) != 1:
+        raise InputError(None, "paths", "a single rmpl .npz or .json file", len(named))
+    kp = _read_rmpl(named[0][1])
+    if fps is not None:
+        kp.fps = _check_fps(fps)
+    if to is None or to == kp.skeleton:
+        return kp
+    xy, sc, name = _convert(kp.keypoints, kp.scores, kp.skeleton, to)
+    return Keypoints2D(xy, sc, name, kp.views, kp.frames, kp.fps)
 
 
 def save_keypoints(kp: Keypoints2D, path: str | Path) -> Path:

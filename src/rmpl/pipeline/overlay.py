@@ -185,7 +185,6 @@ def write_overlays(
     Returns:
         The videos or folders written, one per camera.
     """
-    from tqdm import tqdm
 
     from rmpl.pipeline.detect2d import (
         _cv2,
@@ -201,16 +200,7 @@ def write_overlays(
     if len(sources) != len(rig):
         raise InputError(None, "sources", f"one input per camera ({len(rig)})", len(sources))
     if keypoints is not None:
-        keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
-        if (
-            keypoints.ndim != 5
-            or keypoints.shape[1] != len(rig)
-            or scores.shape != keypoints.shape[:-1]
-        ):
-            raise InputError(
-                None, "keypoints", f"shape (T, {len(rig)}, P, J, 2) with scores (T, V, P, J)",
-                f"{keypoints.shape} and {scores.shape}",
-            )  # fmt: skip
+        keypoints, scores = _checked_keypoints(keypoints, scores, len(rig))
     skeleton = SKELETONS[poses.skeleton]
     if kind == "videos":
         infos = check_videos(sources)
@@ -228,17 +218,36 @@ def write_overlays(
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for v, camera in enumerate(rig):
-        name = f"overlay_{camera.name}"
         stream = video_frames(infos[v]) if kind == "videos" else image_frames(files[v])
-        bar = tqdm(stream, total=num_frames, desc=name, unit="frame", disable=not progress)
         args = (camera, poses, pose_rows, keypoints, scores, kp_rows, skeleton)
-        annotated = (_annotate(im, t, v, *args) for t, im in enumerate(bar))
-        if kind == "videos":
-            written.append(_write_video(out_dir / f"{name}.mp4", annotated, fps))
-        else:
-            written.append(_write_pngs(out_dir / name, annotated, files[v]))
+        target = (out_dir, fps) if kind == "videos" else (out_dir, files[v])
+        written.append(_write_camera(stream, v, args, num_frames, target, progress))
     log.info("wrote reprojection overlays to %s", out_dir)
     return written
+
+
+def _write_camera(stream, v: int, args, num_frames: int, target, progress: bool) -> Path:
+    """One camera's overlay: a video when ``target`` is (folder, fps), else PNGs."""
+    from tqdm import tqdm
+
+    name = f"overlay_{args[0].name}"
+    bar = tqdm(stream, total=num_frames, desc=name, unit="frame", disable=not progress)
+    annotated = (_annotate(im, t, v, *args) for t, im in enumerate(bar))
+    folder, extra = target
+    if isinstance(extra, list):
+        return _write_pngs(folder / name, annotated, extra)
+    return _write_video(folder / f"{name}.mp4", annotated, extra)
+
+
+def _checked_keypoints(keypoints, scores, num_views: int) -> tuple[np.ndarray, np.ndarray]:
+    keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
+    shape_ok = keypoints.ndim == 5 and keypoints.shape[1] == num_views
+    if not shape_ok or scores.shape != keypoints.shape[:-1]:
+        raise InputError(
+            None, "keypoints", f"shape (T, {num_views}, P, J, 2) with scores (T, V, P, J)",
+            f"{keypoints.shape} and {scores.shape}",
+        )  # fmt: skip
+    return keypoints, scores
 
 
 def _write_video(path: Path, images: Iterator[np.ndarray], fps: float) -> Path:
