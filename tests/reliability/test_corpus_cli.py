@@ -241,3 +241,27 @@ def test_c3d_of_many_people_through_run(tmp_path):
     assert main(argv) == 0
     assert load_poses(tmp_path / "res" / "poses.npz").num_people == P
     assert (tmp_path / "res" / "poses.c3d").stat().st_size > 0
+
+
+@pytest.mark.parametrize("which", ["kp.json", "calib.toml"])
+def test_unreadable_input(tmp_path, capsys, monkeypatch, which):
+    # The tests may run as root, who reads anything: the file refuses reads instead.
+    from pathlib import Path
+
+    make_scene(tmp_path)
+    real_read, real_open = Path.read_text, Path.open
+
+    def locked(self, *args, **kwargs):
+        if self.name == which:
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_read(self, *args, **kwargs)
+
+    def locked_open(self, *args, **kwargs):
+        if self.name == which:
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_open(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "read_text", locked)
+    monkeypatch.setattr(Path, "open", locked_open)
+    fails(capsys, io_args(tmp_path), which, "Permission denied")
+    assert not (tmp_path / "out.json").exists()
