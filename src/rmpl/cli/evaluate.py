@@ -60,7 +60,14 @@ def _add_dataset_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--skeleton", default=None, help="recording: 2D joint set when ambiguous (body25, body25b)"
     )
-    parser.add_argument("--fps", type=float, default=None, help="recording: frame rate if none")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="recording: frame rate if none; sequence methods (triangulate+filter, "
+        "rmpl:temporal, ...): the dataset's frame rate (Shelf and Campus state none: 25 is "
+        "assumed; Panoptic 29.97, H36M 50)",
+    )
     parser.add_argument(
         "--min-score",
         type=float,
@@ -193,8 +200,14 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise InputError(args.out, None, "an output folder", "an existing file")
-    config = eval_config(args.dropout, args.calib_noise, args.calib_reps, args.seed, args.pck)
+    from rmpl.evaluate.sequences import dataset_fps
+
+    fps = dataset_fps(args.dataset, args.fps)
+    config = eval_config(
+        args.dropout, args.calib_noise, args.calib_reps, args.seed, args.pck, fps=fps
+    )
     methods = parse_methods(args.methods)
+    _refuse_sequences(args, methods)
     if args.dataset == "recording":
         report = _recording(args, methods)
     elif args.root is None:
@@ -290,4 +303,18 @@ def _benchmark(args, config, methods):
     )
     if args.poses:
         return score_results(evset, load_results(args.poses), config, _command(args))
+    if any(getattr(m, "sequence", False) for m in methods.values()):
+        from dataclasses import replace
+
+        from rmpl.evaluate.sequences import sequence_note
+
+        evset = replace(evset, notes=(*evset.notes, sequence_note(args.dataset, args.fps)))
     return run_benchmark(evset, methods, config, args.views, _command(args))
+
+
+def _refuse_sequences(args, methods) -> None:
+    """Sequence methods need frames in time: not the synthetic scenes, not --poses."""
+    seq = [n for n, m in methods.items() if getattr(m, "sequence", False)]
+    if seq and (args.dataset in ("synthetic", "recording") or args.poses):
+        where = "--poses" if args.poses else f"--dataset {args.dataset}"
+        raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))

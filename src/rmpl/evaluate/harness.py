@@ -98,6 +98,7 @@ class EvalConfig:
         seed: seed of every random draw (dropout masks, calibration noise, 2D noise).
         pck_threshold: PCK distance threshold, metres.
         match_gate: largest mean joint distance of a prediction matched to a person, metres.
+        fps: frame rate of the sequence methods (:mod:`rmpl.evaluate.sequences`), frames/s.
     """
 
     dropout: tuple[float, ...] = (0.0,)
@@ -106,6 +107,7 @@ class EvalConfig:
     seed: int = 0
     pck_threshold: float = 0.150
     match_gate: float = MATCH_GATE
+    fps: float = 25.0
 
     def __post_init__(self) -> None:
         if not self.dropout or any(not 0 <= p < 1 for p in self.dropout):
@@ -119,6 +121,8 @@ class EvalConfig:
             raise ValueError(f"--calib-reps must be >= 1, got {self.calib_reps}")
         if not self.pck_threshold > 0:
             raise ValueError(f"--pck must be > 0, got {self.pck_threshold}")
+        if not self.fps > 0:
+            raise ValueError(f"--fps must be > 0, got {float(self.fps)}")
 
     def conditions(self) -> list[tuple[float, tuple[float, float] | None]]:
         """Every (dropout p, calibration noise or None) pair evaluated."""
@@ -307,8 +311,13 @@ def _run_condition(run: _Run, views, si: int, inputs, ci: int, p: float, calib, 
         kp, sc = _dropout(kp, sc, p, rng)
         rig = (run.rigs[r, i] if calib is not None else part.rig)[list(views)]
         for name, method in run.methods.items():
-            pred = method(kp, sc, rig) if len(kp) else np.zeros((0, 17, 3))
-            placed = _assign(pred, frame, slot, run.gts[i], run.ev.joints, cfg.match_gate)
+            if getattr(method, "sequence", False):  # tracks, then per-frame predictions
+                pred, at = method(kp, sc, frame, len(part), rig, cfg.fps)
+                unmatched = np.full(len(at), -1)
+                placed = _assign(pred, at, unmatched, run.gts[i], run.ev.joints, cfg.match_gate)
+            else:
+                pred = method(kp, sc, rig) if len(kp) else np.zeros((0, 17, 3))
+                placed = _assign(pred, frame, slot, run.gts[i], run.ev.joints, cfg.match_gate)
             per_method[name].append(placed[run.present[i]])
         run.bar.update()
     return {name: np.concatenate(per_method[name]) for name in run.methods}

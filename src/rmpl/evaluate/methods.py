@@ -79,8 +79,17 @@ def parse_methods(spec: str) -> dict[str, Method]:
         raise InputError(None, "--methods", "at least one method", spec)
     if len(set(names)) != len(names):
         raise InputError(None, "--methods", "each method once", spec)
+    from rmpl.evaluate.sequences import (
+        SEQUENCE_METHODS,
+        is_sequence_method,
+        make_sequence_method,
+    )
+
     for name in names:
-        if name.partition(":")[0] not in METHODS:
-            accepted = ", ".join(METHODS)
+        if name.partition(":")[0] not in METHODS and not is_sequence_method(name):
+            accepted = ", ".join([*METHODS, *SEQUENCE_METHODS])
             raise InputError(None, "--methods", f"methods among {accepted} (rmpl:MODEL)", name)
-    return {name: make_method(name) for name in names}
+    return {
+        name: make_sequence_method(name) if is_sequence_method(name) else make_method(name)
+        for name in names
+    }

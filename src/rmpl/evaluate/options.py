@@ -43,10 +43,16 @@ def parse_calib_noise(text: str | None) -> tuple[float, float] | None:
 
 
 def eval_config(
-    dropout: str, calib_noise: str | None, calib_reps: int, seed: int, pck_mm: float
+    dropout: str,
+    calib_noise: str | None,
+    calib_reps: int,
+    seed: int,
+    pck_mm: float,
+    fps: float = 25.0,
 ) -> EvalConfig:
     """The perturbations and thresholds from their option strings (``--pck`` in mm)."""
     return EvalConfig(
+        fps=fps,
         dropout=tuple(parse_floats(dropout, "--dropout")),
         calib_noise=parse_calib_noise(calib_noise),
         calib_reps=calib_reps,
