@@ -18,7 +18,18 @@ log = logging.getLogger(__name__)
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("motion", help="motion-capture folder (ASF/AMC or BVH, searched below)")
     parser.add_argument("--out", required=True, help="pose bank to write (.npz)")
-    parser.add_argument("--fps", type=float, default=10.0, help="frames kept per second")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frames kept per second (default 10; with --sequences 60)",
+    )
+    parser.add_argument(
+        "--sequences",
+        action="store_true",
+        help="keep whole clean stretches of motion in time (a sequence bank, for training the "
+        "temporal model) instead of de-duplicated poses",
+    )
     parser.set_defaults(run=run)
 
 
@@ -30,10 +41,21 @@ def run(args: argparse.Namespace) -> int:
 
     if not str(args.out).endswith(".npz"):
         raise InputError(args.out, None, "an output path ending in .npz")
-    if args.fps <= 0:
-        raise ValueError(f"--fps must be > 0, got {args.fps}")
+    fps = args.fps if args.fps is not None else (60.0 if args.sequences else 10.0)
+    if not fps > 0:
+        raise InputError(None, "--fps", "a frame rate > 0", fps)
     if not Path(args.motion).is_dir():
         raise InputError(args.motion, None, "a folder of motion-capture files")
+    if args.sequences:
+        from rmpl.data.sequences import SequenceBank
+
+        seq = SequenceBank.from_motion_dir(args.motion, fps=fps)
+        seq.save(args.out)
+        minutes = len(seq.poses) / fps / 60
+        log.info("wrote %s: %d segments, %.1f minutes at %g frames/s", args.out, len(seq),
+                 minutes, fps)  # fmt: skip
+        return 0
+    args.fps = fps
     bank = load_motion_dir(args.motion, fps=args.fps)
     save_pose_set(args.out, bank, fps=float(args.fps))
     counts = ", ".join(f"{k}: {v}" for k, v in sorted(bank.counts().items()))
