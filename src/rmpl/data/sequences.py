@@ -36,6 +36,7 @@ __all__ = ["SequenceBank", "SequenceBatch", "SequenceSource", "TemporalNoise"]
 
 log = logging.getLogger(__name__)
 
+MAX_JOINT_SPEED = 15.0  # m/s: a joint faster than this between two frames is a capture glitch
 _LIMBS = (
     (5, 7, 9),  # left arm
     (6, 8, 10),  # right arm
@@ -140,7 +141,8 @@ class SequenceBank:
 
 
 def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
-    """The clip's usable stretches as COCO-17 at ``fps``, floor at z = 0."""
+    """The clip's usable stretches as COCO-17 at ``fps``, floor at z = 0, cut where a joint
+    moves faster than :data:`MAX_JOINT_SPEED` (capture glitches, rest-pose blends)."""
     from rmpl.synth import motion as M
 
     keep = M.usable_frames(motion, min_seconds)
@@ -158,8 +160,17 @@ def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
         i0 = np.floor(t).astype(int).clip(a, b - 1)
         i1 = np.minimum(i0 + 1, b - 1)
         w = (t - i0)[:, None, None]
-        out.append((1 - w) * joints[i0] + w * joints[i1])
+        out += _continuous((1 - w) * joints[i0] + w * joints[i1], fps, min_seconds)
     return out
+
+
+def _continuous(seg: np.ndarray, fps: float, min_seconds: float) -> list[np.ndarray]:
+    """``seg`` (T, J, 3) cut at every frame where a joint jumps, pieces shorter than
+    ``min_seconds`` dropped."""
+    speed = np.linalg.norm(np.diff(seg, axis=0), axis=-1).max(-1) * fps  # (T - 1,)
+    cuts = np.flatnonzero(speed > MAX_JOINT_SPEED) + 1
+    parts = np.split(seg, cuts)
+    return [p for p in parts if (len(p) - 1) / fps >= min_seconds]
 
 
 @dataclass(frozen=True)
