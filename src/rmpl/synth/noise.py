@@ -175,37 +175,62 @@ def detect_like(
         (0 where missed).
     """
     cfg = config or NoiseConfig()
-    Bn, V = K.shape[:2]
-    J = joints.shape[1]
+    shape = (*K.shape[:2], joints.shape[1])  # (B, V, J): the shape of the random draws
     uv = project(joints[:, None], K[:, :, None], R[:, :, None], t[:, :, None])  # (B,V,J,2)
     lo, hi = np.nanmin(uv, axis=2), np.nanmax(uv, axis=2)  # (B, V, 2)
     height = np.nan_to_num(np.max(hi - lo, axis=-1), nan=1.0).clip(5, None)  # (B, V)
-
     centers = -np.einsum("bvji,bvj->bvi", R, t)
     occ = occlusion_mask(joints, centers, cfg.limb_radius, cfg.torso_radius)
 
+    kp, out = _noisy_keypoints(uv, height, occ, shape, cfg, rng)
+    conf = _confidences(kp, uv, height, occ, out, shape, cfg, rng)
+    kp, conf = _swap_sides(kp, conf, shape, cfg, rng)
+    # Missed: occluded drops, whole-person misses, truncation, outside the image.
+    missed = occ & (rng.random(occ.shape) < cfg.occluded_drop)
+    missed |= rng.random((*shape[:2], 1)) < cfg.miss_view_rate
+    missed |= _truncated(uv, lo, hi, shape, cfg, rng)
+    missed |= ~_inside(kp, size) | ~_inside(uv, size) | ~np.isfinite(kp).all(-1)
+    kp[missed] = np.nan
+    conf[missed] = 0.0
+    return kp, conf
+
+
+def _noisy_keypoints(uv, height, occ, shape, cfg: NoiseConfig, rng: np.random.Generator):
+    """Projections ``uv`` (B, V, J, 2) plus an error that grows with the person's pixel
+    ``height`` (B, V), a per-view quality and occlusion ``occ`` (B, V, J); some land on
+    another joint (limb confusion). ``shape`` is (B, V, J), that of the random draws.
+
+    Returns:
+        keypoints (B, V, J, 2) pixels, and which are such outliers (B, V, J) bool.
+    """
+    Bn, V, J = shape
     quality = np.exp(cfg.sigma_spread * rng.standard_normal((Bn, V, 1)))
     sigma = np.asarray(cfg.joint_sigma)[None, None] * height[..., None] * quality
     sigma = np.where(occ, sigma * cfg.occluded_sigma, sigma)
     err = sigma[..., None] * rng.standard_normal((Bn, V, J, 2))
     kp = uv + err
-
-    # Outliers: the keypoint lands on another joint of the person (limb confusion).
     out = rng.random((Bn, V, J)) < cfg.outlier_rate
     other = rng.integers(0, J, (Bn, V, J))
     kp_other = np.take_along_axis(uv, other[..., None].repeat(2, -1), axis=2)
-    kp = np.where(out[..., None], kp_other + err, kp)
+    return np.where(out[..., None], kp_other + err, kp), out
 
+
+def _confidences(kp, uv, height, occ, out, shape, cfg: NoiseConfig, rng: np.random.Generator):
+    """Scores (B, V, J): lower when occluded and as the error ``kp - uv`` grows, jittered,
+    random for the outliers ``out``, then raised to a per-sample power."""
     err_px = np.linalg.norm(kp - uv, axis=-1)
     base = np.where(occ, cfg.conf_occluded, cfg.conf_visible)
     conf = base - cfg.conf_slope * err_px / (0.05 * height[..., None])
     conf = conf + cfg.conf_jitter * rng.standard_normal(conf.shape)
     conf = np.where(out, rng.uniform(0.1, 0.7, conf.shape), conf)
     conf = np.clip(conf, 0.02, 1.0)
-    gamma = rng.uniform(*cfg.conf_gamma, (Bn, 1, 1))
-    conf = conf**gamma
+    gamma = rng.uniform(*cfg.conf_gamma, (shape[0], 1, 1))
+    return conf**gamma
 
-    # Left/right swaps of single pairs, and whole-body mirror confusions.
+
+def _swap_sides(kp, conf, shape, cfg: NoiseConfig, rng: np.random.Generator):
+    """Left/right swaps of single pairs, and whole-body mirror confusions, per view."""
+    Bn, V, J = shape
     pairs = np.array(COCO17.flip_pairs)
     swap = rng.random((Bn, V, len(pairs))) < cfg.swap_rate
     swap |= rng.random((Bn, V, 1)) < cfg.flip_rate
@@ -214,11 +239,13 @@ def detect_like(
         perm[..., l] = np.where(swap[..., k], r, perm[..., l])
         perm[..., r] = np.where(swap[..., k], l, perm[..., r])
     kp = np.take_along_axis(kp, perm[..., None].repeat(2, -1), axis=2)
-    conf = np.take_along_axis(conf, perm, axis=2)
+    return kp, np.take_along_axis(conf, perm, axis=2)
 
-    # Missed: occluded drops, whole-person misses, truncation, outside the image.
-    missed = occ & (rng.random(occ.shape) < cfg.occluded_drop)
-    missed |= rng.random((Bn, V, 1)) < cfg.miss_view_rate
+
+def _truncated(uv, lo, hi, shape, cfg: NoiseConfig, rng: np.random.Generator) -> np.ndarray:
+    """Joints (B, V, J) beyond a random horizontal or vertical line across the person's
+    box ``lo``-``hi`` (B, V, 2), in the views that cut the person."""
+    Bn, V = shape[:2]
     trunc = rng.random((Bn, V)) < cfg.truncate_rate
     axis = rng.integers(0, 2, (Bn, V))
     side = rng.random((Bn, V)) < 0.5
@@ -230,11 +257,11 @@ def detect_like(
     )
     coord = np.where(axis[..., None] == 0, uv[..., 0], uv[..., 1])  # (B, V, J)
     beyond = np.where(side[..., None], coord > cut[..., None], coord < cut[..., None])
-    missed |= trunc[..., None] & beyond
+    return trunc[..., None] & beyond
+
+
+def _inside(points: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Which pixel ``points`` (B, V, J, 2) lie in their image of ``size`` (B, V, 2)."""
     w, h = size[..., 0:1], size[..., 1:2]
-    inside = (kp[..., 0] >= 0) & (kp[..., 0] <= w - 1) & (kp[..., 1] >= 0) & (kp[..., 1] <= h - 1)
-    inside &= (uv[..., 0] >= 0) & (uv[..., 0] <= w - 1) & (uv[..., 1] >= 0) & (uv[..., 1] <= h - 1)
-    missed |= ~inside | ~np.isfinite(kp).all(-1)
-    kp[missed] = np.nan
-    conf[missed] = 0.0
-    return kp, conf
+    u, v = points[..., 0], points[..., 1]
+    return (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
