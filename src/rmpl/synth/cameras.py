@@ -250,10 +250,7 @@ def sample_cameras(
     >>> K.shape, R.shape, t.shape, size.shape
     ((4, 3, 3), (4, 3, 3), (4, 3), (4, 2))
     """
-    if isinstance(preset, str):
-        if preset not in CAMERA_PRESETS:
-            raise ValueError(f"unknown camera preset {preset!r}; known: {sorted(CAMERA_PRESETS)}")
-        preset = CAMERA_PRESETS[preset]
+    preset = _preset(preset)
     if num < 1:
         raise ValueError(f"num must be >= 1, got {num}")
     center = np.asarray(person_center, dtype=float)
@@ -261,31 +258,47 @@ def sample_cameras(
         raise ValueError(f"person_center must be finite with shape (*, 3), got {center.shape}")
     rng = np.random.default_rng(rng)
 
-    lead = center.shape[:-1]
     flat = np.repeat(center.reshape(-1, 3), num, axis=0)  # (B * V, 3) one row per camera
-    n = flat.shape[0]
-    K, R, t = np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3))
-    size = np.zeros((n, 2), dtype=np.int64)
-    todo = np.arange(n)
-    for _ in range(max_tries):
-        draw = _draw(preset, flat[todo], rng)
-        ok = _acceptable(preset, flat[todo], *draw)
-        idx = todo[ok]
-        K[idx], R[idx], t[idx], size[idx] = (a[ok] for a in draw[:4])
-        todo = todo[~ok]
-        if todo.size == 0:
-            break
-    else:
-        raise RuntimeError(
-            f"preset {preset.name!r}: no valid camera for {todo.size} of {n} draws after "
-            f"{max_tries} tries; is the person centre {flat[todo[0]].tolist()} inside the scene?"
-        )
-    shape = (*lead, num)
+    K, R, t, size = _draw_valid(preset, flat, rng, max_tries)
+    shape = (*center.shape[:-1], num)
     return (
         K.reshape(*shape, 3, 3),
         R.reshape(*shape, 3, 3),
         t.reshape(*shape, 3),
         size.reshape(*shape, 2),
+    )
+
+
+def _preset(preset: str | CameraPreset) -> CameraPreset:
+    """The preset of that name in :data:`CAMERA_PRESETS`, or ``preset`` itself."""
+    if isinstance(preset, str):
+        if preset not in CAMERA_PRESETS:
+            raise ValueError(f"unknown camera preset {preset!r}; known: {sorted(CAMERA_PRESETS)}")
+        preset = CAMERA_PRESETS[preset]
+    return preset
+
+
+def _draw_valid(preset: CameraPreset, center: np.ndarray, rng: np.random.Generator, max_tries: int):
+    """One acceptable camera per row of ``center`` (N, 3), redrawing the rejected ones.
+
+    Returns:
+        K (N, 3, 3), R (N, 3, 3), t (N, 3) and size (N, 2) int.
+    """
+    n = center.shape[0]
+    K, R, t = np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3))
+    size = np.zeros((n, 2), dtype=np.int64)
+    todo = np.arange(n)
+    for _ in range(max_tries):
+        draw = _draw(preset, center[todo], rng)
+        ok = _acceptable(preset, center[todo], *draw)
+        idx = todo[ok]
+        K[idx], R[idx], t[idx], size[idx] = (a[ok] for a in draw[:4])
+        todo = todo[~ok]
+        if todo.size == 0:
+            return K, R, t, size
+    raise RuntimeError(
+        f"preset {preset.name!r}: no valid camera for {todo.size} of {n} draws after "
+        f"{max_tries} tries; is the person centre {center[todo[0]].tolist()} inside the scene?"
     )
 
 
