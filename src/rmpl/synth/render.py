@@ -340,6 +340,30 @@ def random_background(
     return (np.clip(img, 0, 1) * 255).astype(np.uint8)
 
 
+def _checked(vertices, colors, K, R, t, size, num_vertices: int):
+    """:meth:`Renderer.render`'s arrays as float32 meshes, float cameras and int sizes,
+    checked against each other: (B, N, 3) twice, (B, V, 3, 3) twice, (B, V, 3), (B, V, 2)."""
+    vertices = np.asarray(vertices, dtype=np.float32)
+    colors = np.asarray(colors, dtype=np.float32)
+    B, N = vertices.shape[:2]
+    if vertices.shape != (B, num_vertices, 3):
+        raise ValueError(f"vertices must have shape (B, {num_vertices}, 3), got {vertices.shape}")
+    if colors.shape != vertices.shape:
+        raise ValueError(f"colors must have shape {vertices.shape}, got {colors.shape}")
+    K, R, t = np.asarray(K, float), np.asarray(R, float), np.asarray(t, float)
+    size = np.asarray(size).astype(np.int64)
+    V = K.shape[1] if K.ndim == 4 else -1
+    for name, a, shape in (
+        ("K", K, (B, V, 3, 3)),
+        ("R", R, (B, V, 3, 3)),
+        ("t", t, (B, V, 3)),
+        ("size", size, (B, V, 2)),
+    ):
+        if a.shape != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
+    return vertices, colors, K, R, t, size
+
+
 class Renderer:
     """Render bodies with one persistent headless OpenGL context.
 
@@ -450,57 +474,45 @@ class Renderer:
             B * V RGB images, body-major (image ``b * V + v``), each (H, W, 3) uint8 for its
             own size; with ``return_masks``, also B * V boolean masks (H, W).
         """
-        vertices = np.asarray(vertices, dtype=np.float32)
-        colors = np.asarray(colors, dtype=np.float32)
-        B, N = vertices.shape[:2]
-        if vertices.shape != (B, self.num_vertices, 3):
-            raise ValueError(
-                f"vertices must have shape (B, {self.num_vertices}, 3), got {vertices.shape}"
-            )
-        if colors.shape != vertices.shape:
-            raise ValueError(f"colors must have shape {vertices.shape}, got {colors.shape}")
-        K, R, t = np.asarray(K, float), np.asarray(R, float), np.asarray(t, float)
-        size = np.asarray(size).astype(np.int64)
-        V = K.shape[1] if K.ndim == 4 else -1
-        for name, a, shape in (
-            ("K", K, (B, V, 3, 3)),
-            ("R", R, (B, V, 3, 3)),
-            ("t", t, (B, V, 3)),
-            ("size", size, (B, V, 2)),
-        ):
-            if a.shape != shape:
-                raise ValueError(f"{name} must have shape {shape}, got {a.shape}")
+        vertices, colors, K, R, t, size = _checked(
+            vertices, colors, K, R, t, size, self.num_vertices
+        )
+        B, V = K.shape[:2]
         rng = np.random.default_rng(rng)
         if lighting is None:
             lighting = [random_lighting(rng) for _ in range(B)]
         normals = vertex_normals(vertices, self._faces)
         images, masks = [], []
-        ctx = self.ctx
         for b in range(B):
             data = np.concatenate([vertices[b], normals[b], colors[b]], axis=-1)  # (N, 9)
             self._vbo.write(np.ascontiguousarray(data, dtype=np.float32).tobytes())
             self._set_lighting(lighting[b])
             for v in range(V):
-                w, h = int(size[b, v, 0]), int(size[b, v, 1])
-                draw, read = self._target((w, h))
-                draw.use()
-                ctx.viewport = (0, 0, w, h)
-                ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-                if backgrounds:
-                    self._draw_background(w, h, rng)
-                ctx.enable(self._mgl.DEPTH_TEST)
-                mvp = gl_projection(K[b, v], R[b, v], t[b, v], (w, h))
-                self._prog["mvp"].write(mvp.T.astype(np.float32).tobytes())
-                eye = -R[b, v].T @ t[b, v]
-                self._prog["eye"].value = tuple(float(x) for x in eye)
-                self._vao.render(self._mgl.TRIANGLES)
-                if draw is not read:
-                    ctx.copy_framebuffer(read, draw)
-                rgba = np.frombuffer(read.read(components=4), np.uint8).reshape(h, w, 4)
+                rgba = self._draw_view(K[b, v], R[b, v], t[b, v], size[b, v], backgrounds, rng)
                 images.append(rgba[..., :3].copy())
                 if return_masks:
                     masks.append(rgba[..., 3] > 127)
         return (images, masks) if return_masks else images
+
+    def _draw_view(self, K, R, t, size, backgrounds: bool, rng: np.random.Generator):
+        """The loaded body seen by one camera: RGBA, shape (H, W, 4) uint8, alpha = body."""
+        ctx = self.ctx
+        w, h = int(size[0]), int(size[1])
+        draw, read = self._target((w, h))
+        draw.use()
+        ctx.viewport = (0, 0, w, h)
+        ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        if backgrounds:
+            self._draw_background(w, h, rng)
+        ctx.enable(self._mgl.DEPTH_TEST)
+        mvp = gl_projection(K, R, t, (w, h))
+        self._prog["mvp"].write(mvp.T.astype(np.float32).tobytes())
+        eye = -R.T @ t
+        self._prog["eye"].value = tuple(float(x) for x in eye)
+        self._vao.render(self._mgl.TRIANGLES)
+        if draw is not read:
+            ctx.copy_framebuffer(read, draw)
+        return np.frombuffer(read.read(components=4), np.uint8).reshape(h, w, 4)
 
     def _set_lighting(self, light: Lighting) -> None:
         dirs = np.asarray(light.directions, float)
