@@ -27,11 +27,29 @@ from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.inference import PRETRAINED, estimate_up, rotation_to_z
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
 
-__all__ = ["TemporalLifter", "TrackResult", "frame_times", "window_starts"]
+__all__ = [
+    "TemporalLifter",
+    "TrackResult",
+    "frame_times",
+    "is_temporal_checkpoint",
+    "window_starts",
+]
 
 log = logging.getLogger(__name__)
 
 PRETRAINED_TEMPORAL: dict[str, Path] = {"temporal": PRETRAINED["default"].parent / "temporal"}
+
+
+def is_temporal_checkpoint(name_or_path: str | Path) -> bool:
+    """Whether a ``--model`` value names a temporal model (shipped name or checkpoint)."""
+    import json
+
+    path = Path(PRETRAINED_TEMPORAL.get(str(name_or_path), name_or_path))
+    try:
+        meta = json.loads((path / "config.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and meta.get("format") == "rmpl-temporal-checkpoint-1"
 
 
 @dataclass

@@ -35,6 +35,7 @@ def setup(tmp_path_factory):
         max_views=3,
         model={"dim": 16, "depth": 1, "window": 6},
     )
+    tt.train_temporal(cfg, d / "full")  # an uninterrupted run, shared by the tests below
     return d, cfg
 
 
@@ -46,7 +47,6 @@ def _weights(path):
 
 def test_train_and_resume_equal_an_uninterrupted_run(setup, monkeypatch):
     d, cfg = setup
-    tt.train_temporal(cfg, d / "full")
     real = tt._checkpoint
     calls = []
 
@@ -198,3 +198,39 @@ def test_window_starts_cover_every_frame_once_or_more():
             covered[a : a + min(W, T)] += 1
         assert (covered >= 1).all() and starts[-1] + min(W, T) == T
     assert np.allclose(frame_times(3, 10.0, None), [0, 0.1, 0.2])
+
+
+def test_rmpl_train_runs_a_temporal_config(setup, tmp_path):
+    from rmpl.cli import main
+
+    d, cfg = setup
+    toml = tmp_path / "t.toml"
+    toml.write_text(
+        f'sequences = "{cfg.sequences}"\nframe_model = "{cfg.frame_model}"\nsteps = 2\n'
+        "batch_size = 2\nval_every = 2\nval_size = 2\nmin_views = 2\nmax_views = 2\n"
+        "[model]\ndim = 16\ndepth = 1\nwindow = 4\n"
+    )
+    assert main(["train", str(toml), "--out", str(tmp_path / "run"), "--set", "seed=3"]) == 0
+    model, meta = tt.load_temporal(tmp_path / "run")
+    assert meta["training"]["train_config"]["seed"] == 3 and model.config.window == 4
+
+
+def test_lift_and_run_with_a_temporal_model_write_the_uncertainty(setup, tmp_path):
+    """rmpl lift / rmpl run with a temporal checkpoint: whole tracks, uncertainty in the files."""
+    from rmpl.cli import main
+    from rmpl.io.poses import load_poses
+    from tests.cli.test_commands import make_scene
+
+    d, _ = setup
+    X = make_scene(tmp_path, views=3, frames=12)
+    common = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    out = tmp_path / "lift.json"
+    assert main(["lift", *common, "--model", str(d / "full"), "--out", str(out)]) == 0
+    poses = load_poses(out)
+    assert poses.points.shape == (12, 1, 17, 3) and poses.uncertainty.shape == (12, 1, 17)
+    assert np.isfinite(poses.uncertainty).all() and (poses.uncertainty > 0).all()
+    assert np.nanmean(np.linalg.norm(poses.points[:, 0] - X, axis=-1)) < 1.0
+    run_dir = tmp_path / "run"
+    assert main(["run", *common, "--model", str(d / "full"), "--out", str(run_dir),
+                 "--no-pictures"]) == 0  # fmt: skip
+    assert load_poses(run_dir / "poses.npz").uncertainty is not None

@@ -14,7 +14,10 @@ from rmpl.geometry.camera import Rig
 
 #: ``--model`` help of the commands that lift (the names of rmpl.inference.PRETRAINED, kept
 #: here so that building the parser does not import torch).
-MODEL_HELP = "shipped model (default, occlusion: for many missing keypoints) or checkpoint folder"
+MODEL_HELP = (
+    "shipped model (default: per frame; occlusion: per frame, for many missing keypoints; "
+    "temporal: whole tracks, needs a frame rate) or checkpoint folder"
+)
 
 log = logging.getLogger(__name__)
 

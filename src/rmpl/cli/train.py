@@ -1,6 +1,10 @@
 """Train an RMPL lifter on synthetic pairs (resumable: run the same command again).
 
-Example: rmpl train configs/default.toml --out runs/default --set poses="../shared/data/cmu_mocap"
+A config with a ``sequences`` key trains the temporal model (:mod:`rmpl.training.temporal`).
+
+Examples:
+  rmpl train configs/default.toml --out runs/default --set poses="../shared/data/cmu_mocap"
+  rmpl train configs/temporal.toml --out runs/temporal --set sequences='"seqbank.npz"'
 """
 
 from __future__ import annotations
@@ -28,6 +32,11 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import tomllib
+
+    with open(args.config, "rb") as f:
+        if "sequences" in tomllib.load(f):
+            return _run_temporal(args)
     cfg = TrainConfig.from_toml(args.config, args.overrides)
     if not cfg.poses:
         raise ValueError(
@@ -44,6 +53,14 @@ def run(args: argparse.Namespace) -> int:
         "poses: %d train, %d validation (held out: %s)", len(train_set), len(val_set), cfg.holdout
     )
     train(cfg, args.out, train_set.poses, val_set.poses)
+    return 0
+
+
+def _run_temporal(args: argparse.Namespace) -> int:
+    from rmpl.training.temporal import TemporalTrainConfig, train_temporal
+
+    cfg = TemporalTrainConfig.from_toml(args.config, args.overrides)
+    train_temporal(cfg, args.out)
     return 0
 
 

@@ -111,6 +111,9 @@ class Poses3D:
         frames: frame numbers, shape (T,), strictly increasing (default 0..T-1).
         fps: frames per second, or None (then TRC and C3D cannot be written).
         person_ids: identity of each person, shape (P,), distinct (default 0..P-1).
+        uncertainty: the predicted 50% error radius of each joint, metres, shape (T, P, J):
+            half of the time the joint is closer than this to the truth (the temporal
+            lifter's calibrated uncertainty); NaN where the point is NaN or has none; or None.
     """
 
     points: np.ndarray
@@ -121,6 +124,7 @@ class Poses3D:
     frames: np.ndarray | None = None
     fps: float | None = None
     person_ids: np.ndarray | None = None
+    uncertainty: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pts = _floats(self.points, "points")
@@ -138,6 +142,7 @@ class Poses3D:
         self.frames = _check_frames(self.frames, T)
         self.fps = _check_fps(self.fps)
         self.person_ids = _check_ids(self.person_ids, P)
+        self.uncertainty = _check_uncertainty(self.uncertainty, pts)
 
     @property
     def num_frames(self) -> int:
@@ -150,6 +155,17 @@ class Poses3D:
     @property
     def joint_names(self) -> tuple[str, ...]:
         return SKELETONS[self.skeleton].joints
+
+
+def _check_uncertainty(u, pts: np.ndarray) -> np.ndarray | None:
+    """Radii (T, P, J) >= 0, finite or NaN; NaN wherever the point is."""
+    if u is None:
+        return None
+    a = _per_joint(u, pts, "uncertainty")
+    if np.isinf(a).any() or (a < 0).any():
+        raise InputError(None, "uncertainty", "radii >= 0 in metres, or NaN", "inf or negative")
+    a[np.isnan(pts).any(-1)] = np.nan
+    return a
 
 
 def _per_joint(x, pts: np.ndarray, field: str) -> np.ndarray:
@@ -315,7 +331,7 @@ def _file_points(poses: Poses3D, units: str, up_axis: str | None) -> np.ndarray:
 
 
 def _write_npz(poses: Poses3D, tmp: Path) -> None:
-    optional = {k: getattr(poses, k) for k in ("scores", "flags", "num_views")}
+    optional = {k: getattr(poses, k) for k in ("scores", "flags", "num_views", "uncertainty")}
     with open(tmp, "wb") as f:
         np.savez_compressed(
             f,
@@ -344,6 +360,7 @@ def _npz_fields(path: Path) -> dict:
         frames=_npz_get(data, "frames", path),
         fps=_fps_from_npz(_npz_get(data, "fps", path), path),
         person_ids=_npz_get(data, "person_ids", path),
+        uncertainty=data.get("uncertainty"),
     )
 
 
@@ -365,6 +382,7 @@ def _json_doc(poses: Poses3D) -> dict:
         "flags": opt(poses.flags),
         "flag_values": {s.name.lower(): int(s) for s in JointSource},
         "num_views": opt(poses.num_views),
+        "uncertainty": None if poses.uncertainty is None else _json_floats(poses.uncertainty),
     }
 
 
@@ -396,6 +414,7 @@ def _json_fields(path: Path) -> dict:
         frames=doc["frames"],
         fps=doc.get("fps"),
         person_ids=doc["person_ids"],
+        uncertainty=opt("uncertainty"),
     )
 
 

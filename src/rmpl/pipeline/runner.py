@@ -185,15 +185,18 @@ def estimate(
     config: RunConfig,
     chunk: int = 2048,
     progress: bool = False,
+    fn=None,
 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """3D joints of every associated person, batched over frames.
+
+    ``fn(kp, sc, rig) -> (points, num_views)`` replaces the estimator ``config`` names.
 
     Returns:
         Per frame: points (N, J, 3) metres and the number of views per joint (N, J).
     """
     from tqdm import tqdm
 
-    fn = _estimator(config)
+    fn = fn or _estimator(config)
     counts = [len(a) for a in people]
     if sum(counts) == 0:
         J = people[0].keypoints.shape[-2] if people else 17
@@ -219,8 +222,6 @@ def track_people(
     Returns:
         tracks (T, P, J, 3), views (T, P, J) (0 where absent), ids (P,).
     """
-    from rmpl.pipeline.tracking import track, track_indices
-
     T = len(points)
     J = points[0].shape[-2] if T else 17
     if all(len(p) <= 1 for p in points):  # a single person: no identities to keep
@@ -230,21 +231,33 @@ def track_people(
             if len(p):
                 tracks[t, 0], views[t, 0] = p[0], v[0]
         return tracks, views, np.array([0])
-    kwargs = {"max_distance": config.track_distance, "max_missed": config.max_missed}
-    tracks, ids = track(points, **kwargs)
-    index = track_indices(points, **kwargs)  # (T, P): person index per frame, -1 absent
+    index, ids = track_index(points, config)
+    tracks = np.full((T, index.shape[1], J, 3), np.nan)
     views = np.zeros(tracks.shape[:3], int)
-    for t in range(T):
-        for p in np.nonzero(index[t] >= 0)[0]:
-            views[t, p] = num_views[t][index[t, p]]
-    frames = np.isfinite(tracks).all(-1).any(-1).sum(0)  # (P,) frames each track is present
-    keep = frames >= config.min_track_frames
+    for t, p in zip(*np.nonzero(index >= 0), strict=True):
+        tracks[t, p], views[t, p] = points[t][index[t, p]], num_views[t][index[t, p]]
+    return tracks, views, ids
+
+
+def track_index(points: list[np.ndarray], config: RunConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Identities over time as indices: (T, P) the person of each track in each frame (-1
+    where absent) and the track ids (P,). Tracks in fewer than ``min_track_frames`` frames
+    are dropped."""
+    from rmpl.pipeline.tracking import track_indices
+
+    kwargs = {"max_distance": config.track_distance, "max_missed": config.max_missed}
+    index = track_indices(points, **kwargs)
+    ids = np.arange(index.shape[1], dtype=np.int64)
+    seen = np.zeros(index.shape, bool)  # a track has a joint in that frame
+    for t, p in zip(*np.nonzero(index >= 0), strict=True):
+        seen[t, p] = np.isfinite(points[t][index[t, p]]).all(-1).any()
+    keep = seen.sum(0) >= config.min_track_frames
     if keep.any() and not keep.all():
         log.info(
             "dropping %d tracks seen in < %d frames", int((~keep).sum()), config.min_track_frames
         )
-        tracks, views, ids = tracks[:, keep], views[:, keep], np.asarray(ids)[keep]
-    return tracks, views, ids
+        index, ids = index[:, keep], ids[keep]
+    return index, ids
 
 
 def smooth(
@@ -274,6 +287,44 @@ def smooth(
             x, fps, min_cutoff=config.one_euro_min_cutoff, beta=config.one_euro_beta
         )
     return x, interpolated & np.isfinite(x).all(-1)
+
+
+def _is_temporal(cfg: RunConfig) -> bool:
+    from rmpl.inference_temporal import is_temporal_checkpoint
+
+    return cfg.method == "rmpl" and is_temporal_checkpoint(cfg.model)
+
+
+def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: RunConfig):
+    """Track the associated people with per-frame estimates, then lift each track with the
+    temporal model ``cfg.model``.
+
+    Returns:
+        tracks (T, P, J, 3), uncertainty (T, P, J) (the 50% error radius, metres), views
+        (T, P, J), ids (P,) and interpolated (T, P, J): frames the model filled, where the
+        track had no 2D.
+    """
+    from rmpl.inference import Lifter
+    from rmpl.inference_temporal import TemporalLifter
+    from rmpl.model.temporal import RADIUS_50
+    from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
+
+    if fps is None:
+        raise InputError(None, "--fps", "a frame rate for the temporal model", "none known")
+    lifter = TemporalLifter.from_pretrained(cfg.model)
+    frame = Lifter(lifter.model.frame_model)
+    up = None if cfg.up is None else np.asarray(cfg.up, float)
+    fn = lambda kp, sc, r: (lambda x: (x.points, x.num_views))(frame.lift(kp, sc, r, up=up))  # noqa: E731
+    pts, _ = estimate(people, rig, cfg, fn=fn)
+    if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
+        index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
+    else:
+        index, ids = track_index(pts, cfg)
+    kp, sc = tracks_2d(people, index)
+    tracks, sigma, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up)
+    filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
+    interpolated = filled & np.isfinite(tracks).all(-1)
+    return tracks, sigma * RADIUS_50, views, ids, interpolated
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:
@@ -328,11 +379,15 @@ def run(
         check_cutoff(cfg.cutoff, fps)  # before the long part
     keypoints, scores = drop_far(keypoints, scores, rig)
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
-    pts, nv = estimate(people, rig, cfg, progress=progress)
-    tracks, views, ids = track_people(pts, nv, cfg)
-    interpolated = np.zeros(tracks.shape[:-1], bool)
-    if temporal:
-        tracks, interpolated = smooth(tracks, fps, cfg)
+    uncertainty = None
+    if _is_temporal(cfg):  # whole tracks through the temporal lifter: it is the filter
+        tracks, uncertainty, views, ids, interpolated = lift_people(people, rig, fps, cfg)
+    else:
+        pts, nv = estimate(people, rig, cfg, progress=progress)
+        tracks, views, ids = track_people(pts, nv, cfg)
+        interpolated = np.zeros(tracks.shape[:-1], bool)
+        if temporal:
+            tracks, interpolated = smooth(tracks, fps, cfg)
     ok = np.isfinite(tracks).all(-1)
     source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))
@@ -346,4 +401,5 @@ def run(
         frames=np.arange(T) if frames is None else np.asarray(frames),
         fps=fps,
         person_ids=np.asarray(ids),
+        uncertainty=uncertainty,
     )

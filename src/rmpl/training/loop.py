@@ -123,17 +123,7 @@ class TrainConfig:
         """Read a TOML file; ``overrides`` are ``key=value`` strings (TOML values)."""
         with open(path, "rb") as f:
             d = tomllib.load(f)
-        for item in overrides or []:
-            if "=" not in item:
-                raise ValueError(f"override must be key=value, got {item!r}")
-            key, value = item.split("=", 1)
-            parsed = tomllib.loads(f"v = {value}")["v"] if value else ""
-            target = d
-            *parents, leaf = key.split(".")
-            for p in parents:
-                target = target.setdefault(p, {})
-            target[leaf] = parsed
-        return cls.from_dict(d)
+        return cls.from_dict(apply_overrides(d, overrides))
 
     def noise_config(self) -> NoiseConfig:
         """The detector noise model: ``noise_file``'s ``[noise]`` table, then ``noise``."""
@@ -159,6 +149,21 @@ class TrainConfig:
     def model_config(self) -> RMPLConfig:
         base = PRESETS[self.preset]
         return RMPLConfig.from_dict({**base.to_dict(), **self.model})
+
+
+def apply_overrides(d: dict, overrides: list[str] | None) -> dict:
+    """``key=value`` strings (TOML values; ``a.b=...`` for a table's key) applied to ``d``."""
+    for item in overrides or []:
+        if "=" not in item:
+            raise ValueError(f"override must be key=value, got {item!r}")
+        key, value = item.split("=", 1)
+        parsed = tomllib.loads(f"v = {value}")["v"] if value else ""
+        target = d
+        *parents, leaf = key.split(".")
+        for p in parents:
+            target = target.setdefault(p, {})
+        target[leaf] = parsed
+    return d
 
 
 def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) -> None:

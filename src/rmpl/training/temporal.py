@@ -78,10 +78,18 @@ class TemporalTrainConfig:
     noise: dict = field(default_factory=dict)
 
     @classmethod
-    def from_toml(cls, path: str | Path, overrides: dict | None = None) -> TemporalTrainConfig:
+    def from_toml(
+        cls, path: str | Path, overrides: list[str] | dict | None = None
+    ) -> TemporalTrainConfig:
+        """Read a TOML file; ``overrides``: ``key=value`` strings (TOML values) or a dict."""
+        from rmpl.training.loop import apply_overrides
+
         with open(path, "rb") as f:
             d = tomllib.load(f)
-        d |= overrides or {}
+        if isinstance(overrides, dict):
+            d |= overrides
+        else:
+            d = apply_overrides(d, overrides)
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
