@@ -360,11 +360,6 @@ def _draw_poses(worker: Worker, n: int, first: int, rng: np.random.Generator):
 
 def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     """Make shard ``index`` and write it atomically; returns its counts and stage times."""
-    from rmpl.geometry.camera import project
-    from rmpl.synth.body import place_bodies
-    from rmpl.synth.cameras import sample_cameras
-    from rmpl.synth.render import random_outfits
-
     cfg = worker.cfg
     first = index * cfg.shard_size
     n = _shard_meshes(cfg, index)
@@ -377,57 +372,28 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     times = {"pose": 0.0, "render": 0.0, "detect": 0.0}
     parts: dict[str, list] = {k: [] for k in SHARD_ARRAYS}
     rejected = 0
-    V = cfg.views
     for start in range(0, n, cfg.batch_size):
         b = min(cfg.batch_size, n - start)
         t0 = time.perf_counter()
-        verts, kps, meta, rej = _draw_poses(worker, b, first + start, rng)
-        rejected += rej
-        yaw = rng.uniform(-np.pi, np.pi, b)
-        where = rng.uniform(-cfg.room, cfg.room, (b, 2))
-        verts, kps = place_bodies(verts, kps, yaw, where)
-        center = kps[:, 11:13].mean(axis=1).astype(float)
-        K, R, t, size = sample_cameras(V, center, cfg.camera_preset, rng)
-        if cfg.image_size:
-            K, size = _scale_cameras(K, size, tuple(cfg.image_size))
-        proj = project(kps[:, None].astype(float), K[:, :, None], R[:, :, None], t[:, :, None])
-        colors = random_outfits(worker.body.vertex_parts, b, rng)
+        posed = _pose_batch(worker, b, first + start, rng)
         t1 = time.perf_counter()
-        images = worker.renderer.render(verts, colors, K, R, t, size, rng=rng)
-        occ = np.zeros((b * V, 17), bool)
-        if cfg.occlusion_rate > 0:
-            occ = occlude(
-                images, proj.reshape(b * V, 17, 2), cfg.occlusion_rate, cfg.occlusion_size, occ_rng
-            )
+        images, occ = _render_batch(worker, posed, rng, occ_rng)
         t2 = time.perf_counter()
         kp2d, scores = worker.detector(images)
         t3 = time.perf_counter()
         times["pose"] += t1 - t0
         times["render"] += t2 - t1
         times["detect"] += t3 - t2
-        parts["joints3d"].append(kps.astype(np.float32))
-        parts["keypoints"].append(np.asarray(kp2d, np.float32).reshape(b, V, 17, 2))
-        parts["scores"].append(np.asarray(scores, np.float32).reshape(b, V, 17))
-        parts["projected"].append(proj.astype(np.float32))
-        parts["K"].append(K)
-        parts["R"].append(R)
-        parts["t"].append(t)
-        parts["size"].append(size.astype(np.int32))
-        parts["occluded"].append(occ.reshape(b, V, 17))
-        phen, subject, clip, frame, mirrored = zip(*meta, strict=True)
-        parts["phenotypes"].append(np.asarray(phen, np.float32))
-        parts["subject"].append(np.asarray(subject, str))
-        parts["clip"].append(np.asarray(clip, str))
-        parts["frame"].append(np.asarray(frame, np.int64))
-        parts["mirrored"].append(np.asarray(mirrored, bool))
+        rejected += posed.rejected
+        for key, array in _batch_arrays(posed, kp2d, scores, occ).items():
+            parts[key].append(array)
     arrays = {k: np.concatenate(v) for k, v in parts.items()}
-    miss = int((arrays["scores"] == 0).sum())
     stats = {
         "shard": index,
         "meshes": n,
-        "views": n * V,
+        "views": n * cfg.views,
         "rejected": rejected,
-        "missed_joints": miss,
+        "missed_joints": int((arrays["scores"] == 0).sum()),
         "missed_views": int((arrays["scores"] == 0).all(-1).sum()),
         "seconds": times,
     }
@@ -435,6 +401,78 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays, stats=np.array(json.dumps(stats)))
     return stats
+
+
+@dataclass
+class _Posed:
+    """One batch of b posed bodies placed in the room, with their V cameras."""
+
+    vertices: np.ndarray  # (b, N, 3) world metres
+    joints: np.ndarray  # (b, 17, 3) COCO-17, world metres
+    meta: list[tuple]  # per body: phenotypes, subject, clip, frame, mirrored
+    rejected: int  # implausible poses drawn and replaced
+    K: np.ndarray  # (b, V, 3, 3) pixels
+    R: np.ndarray  # (b, V, 3, 3)
+    t: np.ndarray  # (b, V, 3) metres
+    size: np.ndarray  # (b, V, 2) pixels
+    projected: np.ndarray  # (b, V, 17, 2) joints projected, pixels
+    colors: np.ndarray  # (b, N, 3) vertex RGB of the outfits
+
+
+def _pose_batch(worker: Worker, b: int, first: int, rng: np.random.Generator) -> _Posed:
+    """b plausible bodies (mesh ``first`` onwards) placed in the room, seen by random cameras."""
+    from rmpl.geometry.camera import project
+    from rmpl.synth.body import place_bodies
+    from rmpl.synth.cameras import sample_cameras
+    from rmpl.synth.render import random_outfits
+
+    cfg = worker.cfg
+    verts, kps, meta, rejected = _draw_poses(worker, b, first, rng)
+    yaw = rng.uniform(-np.pi, np.pi, b)
+    where = rng.uniform(-cfg.room, cfg.room, (b, 2))
+    verts, kps = place_bodies(verts, kps, yaw, where)
+    center = kps[:, 11:13].mean(axis=1).astype(float)
+    K, R, t, size = sample_cameras(cfg.views, center, cfg.camera_preset, rng)
+    if cfg.image_size:
+        K, size = _scale_cameras(K, size, tuple(cfg.image_size))
+    proj = project(kps[:, None].astype(float), K[:, :, None], R[:, :, None], t[:, :, None])
+    colors = random_outfits(worker.body.vertex_parts, b, rng)
+    return _Posed(verts, kps, meta, rejected, K, R, t, size, proj, colors)
+
+
+def _render_batch(worker: Worker, posed: _Posed, rng, occ_rng) -> tuple[list, np.ndarray]:
+    """The b * V images (body-major), and the joints under a pasted square (b * V, 17)."""
+    cfg = worker.cfg
+    p, bv = posed, len(posed.joints) * cfg.views
+    images = worker.renderer.render(p.vertices, p.colors, p.K, p.R, p.t, p.size, rng=rng)
+    occ = np.zeros((bv, 17), bool)
+    if cfg.occlusion_rate > 0:
+        occ = occlude(
+            images, p.projected.reshape(bv, 17, 2), cfg.occlusion_rate, cfg.occlusion_size, occ_rng
+        )
+    return images, occ
+
+
+def _batch_arrays(posed: _Posed, kp2d, scores, occ: np.ndarray) -> dict[str, np.ndarray]:
+    """One batch's part of every :data:`SHARD_ARRAYS` array, in their dtypes."""
+    b, V = posed.K.shape[:2]
+    phen, subject, clip, frame, mirrored = zip(*posed.meta, strict=True)
+    return {
+        "joints3d": posed.joints.astype(np.float32),
+        "keypoints": np.asarray(kp2d, np.float32).reshape(b, V, 17, 2),
+        "scores": np.asarray(scores, np.float32).reshape(b, V, 17),
+        "projected": posed.projected.astype(np.float32),
+        "K": posed.K,
+        "R": posed.R,
+        "t": posed.t,
+        "size": posed.size.astype(np.int32),
+        "occluded": occ.reshape(b, V, 17),
+        "phenotypes": np.asarray(phen, np.float32),
+        "subject": np.asarray(subject, str),
+        "clip": np.asarray(clip, str),
+        "frame": np.asarray(frame, np.int64),
+        "mirrored": np.asarray(mirrored, bool),
+    }
 
 
 # --------------------------------------------------------------------------- the driver
