@@ -105,12 +105,17 @@ def _parse_names(names: np.ndarray, path: Path) -> list[tuple[str, str, str, int
 
 def h36m_subjects(root: str | Path, annotations: str = "test_h36m_body3d.npz") -> list[str]:
     """The subjects present in an annotation file, e.g. ``["S9", "S11"]``."""
-    path = Path(root) / annotations
+    _, samples = _read_samples(Path(root) / annotations)
+    subjects = {s for s, *_ in samples}
+    return sorted(subjects, key=lambda s: int(s[1:]))
+
+
+def _read_samples(path: Path) -> tuple[dict, list[tuple[str, str, str, int]]]:
+    """The annotation npz's arrays, and (subject, action, camera id, frame) per sample."""
     doc = _load_npz(path)
     if "imgname" not in doc:
         raise InputError(path, "imgname", "image names, shape (S,)", "missing")
-    subjects = {s for s, *_ in _parse_names(doc["imgname"], path)}
-    return sorted(subjects, key=lambda s: int(s[1:]))
+    return doc, _parse_names(doc["imgname"], path)
 
 
 def _to_world(X: np.ndarray, rig: Rig, view: np.ndarray) -> np.ndarray:
@@ -185,45 +190,69 @@ def load_h36m(
     if source not in SOURCES:
         raise InputError(None, "source", f"one of {SOURCES}", source)
     path = root / annotations
-    doc = _load_npz(path)
-    if "imgname" not in doc:
-        raise InputError(path, "imgname", "image names, shape (S,)", "missing")
-    samples = _parse_names(doc["imgname"], path)
+    doc, samples = _read_samples(path)
     S3 = _array(doc, "S", (len(samples), 17, 4), path)
+    subject = _choose_subject(samples, subject, path)
+    rig = load_rig(root / cameras, "h36m-pkl", subject=subject)
+    mine, keys, t_of, v_of = _frames_and_views(samples, subject, rig, root / cameras)
+    gt = _world_gt(S3[mine], rig, t_of, v_of, len(keys))
+    two_d = _keypoints_2d(root, doc, path, source, detections)
+    keypoints, scores = _to_views(two_d, mine, t_of, v_of, (len(keys), len(rig)))
+    frames = np.array([f for _, f in keys], dtype=int)
+    clips = np.array([a for a, _ in keys], dtype=str)
+    return MultiViewDataset(
+        rig, frames, gt, H36M17.name, keypoints, scores, f"h36m/{subject}", clips=clips
+    )
+
+
+def _choose_subject(samples: list[tuple], subject: str | None, path: Path) -> str:
+    """``subject``, or the only subject of the samples when None; checked."""
     subjects = sorted({s for s, *_ in samples})
     if subject is None and len(subjects) != 1:
         raise InputError(path, "subject", "a subject (the file holds several)", subjects)
     subject = subject or subjects[0]
     if subject not in subjects:
         raise InputError(path, "subject", f"one of {subjects}", subject)
-    rig = load_rig(root / cameras, "h36m-pkl", subject=subject)
+    return subject
 
+
+def _frames_and_views(samples: list[tuple], subject: str, rig: Rig, cameras: Path):
+    """Where the subject's samples go among its synchronised views.
+
+    Returns:
+        the subject's sample indices (S_subject,); the sorted (action, frame) keys, one per
+        output frame (T); and each sample's frame index and view index, (S_subject,) each.
+    """
     mine = [i for i, s in enumerate(samples) if s[0] == subject]
     keys = sorted({(samples[i][1], samples[i][3]) for i in mine})
     row = {k: t for t, k in enumerate(keys)}
     unknown = sorted({samples[i][2] for i in mine} - set(rig.names))
     if unknown:
-        raise InputError(root / cameras, f"({subject!r}, camera)", f"cameras {rig.names}", unknown)
+        raise InputError(cameras, f"({subject!r}, camera)", f"cameras {rig.names}", unknown)
     t_of = np.array([row[samples[i][1], samples[i][3]] for i in mine])
     v_of = np.array([rig.names.index(samples[i][2]) for i in mine])
-    T, V = len(keys), len(rig)
+    return mine, keys, t_of, v_of
 
-    world = _to_world(S3[mine, :, :3], rig, v_of)  # (S_subject, 17, 3)
-    seen = S3[mine, :, 3:] > 0  # (S_subject, 17, 1) the visibility flag
+
+def _world_gt(S3: np.ndarray, rig: Rig, t_of: np.ndarray, v_of: np.ndarray, T: int):
+    """Camera-frame joints with visibility (S, 17, 4) -> the world mean over the views that
+    see each joint, (T, 1, 17, 3) metres, NaN when no view does."""
+    world = _to_world(S3[:, :, :3], rig, v_of)  # (S, 17, 3)
+    seen = S3[:, :, 3:] > 0  # (S, 17, 1) the visibility flag
     total, count = np.zeros((T, 17, 3)), np.zeros((T, 17, 1))
     np.add.at(total, t_of, np.where(seen, world, 0.0))
     np.add.at(count, t_of, seen.astype(float))
     with np.errstate(invalid="ignore"):
-        gt = (total / count)[:, None]  # (T, 1, 17, 3): mean over views; NaN when unseen
+        return (total / count)[:, None]
 
-    keypoints = scores = None
-    two_d = _keypoints_2d(root, doc, path, source, detections)
-    if two_d is not None:
-        xy, sc = _coco17(two_d[0][mine], two_d[1][mine])
-        keypoints, scores = np.full((T, V, 1, 17, 2), np.nan), np.zeros((T, V, 1, 17))
-        keypoints[t_of, v_of, 0], scores[t_of, v_of, 0] = xy, sc
-    frames = np.array([f for _, f in keys], dtype=int)
-    clips = np.array([a for a, _ in keys], dtype=str)
-    return MultiViewDataset(
-        rig, frames, gt, H36M17.name, keypoints, scores, f"h36m/{subject}", clips=clips
-    )
+
+def _to_views(two_d, mine: list[int], t_of, v_of, shape: tuple[int, int]):
+    """The 2D of every sample, H36M-17 (S, 17, 2) and (S, 17), or None -> the subject's
+    samples ``mine`` in COCO-17, each in its (frame, view) of ``shape`` (T, V):
+    (T, V, 1, 17, 2) pixels and (T, V, 1, 17), NaN / 0 elsewhere; or None, None."""
+    if two_d is None:
+        return None, None
+    xy, sc = _coco17(two_d[0][mine], two_d[1][mine])
+    keypoints, scores = np.full((*shape, 1, 17, 2), np.nan), np.zeros((*shape, 1, 17))
+    keypoints[t_of, v_of, 0], scores[t_of, v_of, 0] = xy, sc
+    return keypoints, scores
