@@ -291,15 +291,29 @@ def write_viewer(
         raise InputError(None, "cameras", "an rmpl Rig or None", type(cameras).__name__)
     if up is None:
         up = guess_up(points, names, cameras)
-    R = view_rotation(up)
-    view_pts = points @ R.T  # (T, P, J, 3) in viewer axes, +Y up
-    centres = np.zeros((0, 3)) if cameras is None else cameras.centers @ R.T
-    layout = _layout(view_pts, centres)
-    depth = float(np.clip(0.08 * layout["radius"], 0.15, 1.0))
-    cams = [] if cameras is None else _frusta(cameras, depth)
-    T, P, J, _ = points.shape
+    view_pts, scene = _scene(points, cameras, up)
     meta = {
         "title": title or path.stem,
+        **_playback(points.shape, fps, frames, ids, names, bones),
+        **scene,
+    }
+    _write_page(path, meta, view_pts)
+    return path
+
+
+def _write_page(path: Path, meta: dict, view_pts: np.ndarray) -> None:
+    """The page with ``meta`` and then the points (viewer axes) as its data, atomically."""
+    data = json.dumps(meta)[:-1] + ',"points":' + _numbers(view_pts) + "}"
+    page = _page(data, meta["title"])
+    with atomic_path(path) as tmp:
+        tmp.write_text(page, encoding="utf-8")
+
+
+def _playback(shape: tuple, fps, frames, ids, names, bones) -> dict:
+    """The page data on what is played: rate, frames, people and bones of poses ``shape``
+    (T, P, J, 3)."""
+    T, P, J, _ = shape
+    return {
         "fps": fps or 30.0,
         "fpsKnown": fps is not None,
         "frames": frames.tolist(),
@@ -309,6 +323,19 @@ def write_viewer(
         "personIds": ids.tolist(),
         "bones": bones,
         "sides": [_side(names, a, b) for a, b in bones],
+    }
+
+
+def _scene(points: np.ndarray, cameras: Rig | None, up: str) -> tuple[np.ndarray, dict]:
+    """The points (T, P, J, 3) turned to viewer axes (+Y up), and the page data on the
+    scene: the axes, the camera frusta, the floor, grid and initial view."""
+    R = view_rotation(up)
+    view_pts = points @ R.T  # (T, P, J, 3) in viewer axes, +Y up
+    centres = np.zeros((0, 3)) if cameras is None else cameras.centers @ R.T
+    layout = _layout(view_pts, centres)
+    depth = float(np.clip(0.08 * layout["radius"], 0.15, 1.0))
+    cams = [] if cameras is None else _frusta(cameras, depth)
+    scene = {
         "up": up,
         "axes": R.T.tolist(),  # rows: world x, y, z in viewer axes
         "cameras": [
@@ -323,8 +350,4 @@ def write_viewer(
         "threeVersion": THREE_VERSION,
         **layout,
     }
-    data = json.dumps(meta)[:-1] + ',"points":' + _numbers(view_pts) + "}"
-    page = _page(data, meta["title"])
-    with atomic_path(path) as tmp:
-        tmp.write_text(page, encoding="utf-8")
-    return path
+    return view_pts, scene
