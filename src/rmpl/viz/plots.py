@@ -56,43 +56,59 @@ def plot_skeletons(
     panels = len(frames) + (rig is not None)
     fig = plt.figure(figsize=(4.2 * panels, 4.6))
     if rig is not None:  # a top view of the cameras and the person's path
-        ax = fig.add_subplot(1, panels, 1)
-        C = rig.centers
-        ax.scatter(*C[:, :2].T, marker="^", color="k")
-        for c, name in zip(C, rig.names, strict=True):
-            ax.annotate(name, c[:2], fontsize=7)
-        path_xy = np.nanmean(P, axis=(1, 2))[:, :2]
-        ax.plot(*path_xy.T, color="tab:green", lw=2, label="person")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.set_title("top view: cameras and path", fontsize=9)
+        _top_view(fig.add_subplot(1, panels, 1), rig, P)
     centre = np.nanmean(P[frames], axis=(0, 1, 2))
-    half = 1.0
+    half = 1.0  # half the side of the cube shown, grown to fit every frame so far
     for k, t in enumerate(frames):
         ax = fig.add_subplot(1, panels, k + 1 + (rig is not None), projection="3d")
-        mid = np.nanmean(P[t], axis=(0, 1)) if np.isfinite(P[t]).any() else centre
-        half = (
-            max(half, float(np.nanmax(np.abs(P[t] - mid))) + 0.1)
-            if np.isfinite(P[t]).any()
-            else half
-        )
-        for p in range(P.shape[1]):
-            for a, b in skeleton.bones:
-                if ref is not None:
-                    ax.plot(*ref[t, p, [a, b]].T, color="0.6", ls="--", lw=1)
-                ax.plot(*P[t, p, [a, b]].T, color=_bone_color(skeleton, a, b), lw=2)
-        ax.set_xlim(mid[0] - half, mid[0] + half)
-        ax.set_ylim(mid[1] - half, mid[1] + half)
-        ax.set_zlim(mid[2] - half, mid[2] + half)
-        ax.set_box_aspect((1, 1, 1))
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
-        ax.set_zlabel("z (m)")
+        X, X_ref = P[t], None if ref is None else ref[t]
+        half = _skeleton_panel(ax, X, X_ref, skeleton, centre, half)
         ax.set_title(f"frame {t}", fontsize=9)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
+    return _save(fig, path)
+
+
+def _top_view(ax, rig: Rig, P: np.ndarray) -> None:
+    """The cameras seen from above, and the path of the people's mean (T, P, J, 3)."""
+    C = rig.centers
+    ax.scatter(*C[:, :2].T, marker="^", color="k")
+    for c, name in zip(C, rig.names, strict=True):
+        ax.annotate(name, c[:2], fontsize=7)
+    path_xy = np.nanmean(P, axis=(1, 2))[:, :2]
+    ax.plot(*path_xy.T, color="tab:green", lw=2, label="person")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title("top view: cameras and path", fontsize=9)
+
+
+def _skeleton_panel(ax, X, X_ref, skeleton: Skeleton, centre, half: float) -> float:
+    """One frame's people X (P, J, 3) and reference (or None) in a cube around them (or
+    ``centre`` when none is seen) of half side ``half`` at least; returns the half side."""
+    seen = np.isfinite(X).any()
+    mid = np.nanmean(X, axis=(0, 1)) if seen else centre
+    half = max(half, float(np.nanmax(np.abs(X - mid))) + 0.1) if seen else half
+    for p in range(X.shape[0]):
+        for a, b in skeleton.bones:
+            if X_ref is not None:
+                ax.plot(*X_ref[p, [a, b]].T, color="0.6", ls="--", lw=1)
+            ax.plot(*X[p, [a, b]].T, color=_bone_color(skeleton, a, b), lw=2)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(mid[2] - half, mid[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_zlabel("z (m)")
+    return half
+
+
+def _save(fig, path: str | Path) -> Path:
+    """Write the figure to a PNG atomically and close it."""
+    import matplotlib.pyplot as plt
+
     path = Path(path)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=90, format="png")
@@ -137,8 +153,4 @@ def plot_reprojection(
         ax.set_title(cam.name, fontsize=8)
         ax.tick_params(labelsize=6)
     fig.tight_layout()
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=90, format="png")
-    plt.close(fig)
-    return path
+    return _save(fig, path)
