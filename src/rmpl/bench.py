@@ -68,9 +68,31 @@ def run_bench(
     """Time each (method, backend, views, batch); returns one row per measurement."""
     from tqdm import tqdm
 
+    torch.set_num_threads(2)
+    runners = _runners(_models(presets), backends)
+    rows = []
+    jobs = [(v, b) for v in views for b in batches]
+    for v, b in tqdm(jobs, desc="bench", disable=not progress):
+        rays, scores, kp, rig = synthetic_inputs(b, v)
+        with torch.no_grad():
+            for (name, backend), fn in runners.items():
+                rate = _rate(lambda fn=fn, r=rays, s=scores: fn(r, s), b, min_time)
+                rows.append(_row(f"rmpl-{name}", backend, v, b, rate))
+        if v >= 2:
+            for method, f in (
+                ("triangulate", triangulate),
+                ("triangulate_robust", triangulate_robust),
+            ):
+                rate = _rate(lambda f=f, k=kp, s=scores, g=rig: f(k, s, g), b, min_time)
+                rows.append(_row(method, "numpy", v, b, rate))
+    return rows
+
+
+def _models(presets) -> dict[str, RMPL]:
+    """One model per preset name; "default" is the shipped checkpoint when there is one,
+    an unknown name the "small" preset."""
     from rmpl.inference import PRETRAINED
 
-    torch.set_num_threads(2)
     models = {}
     for name in presets:
         if name == "default" and (PRETRAINED["default"] / "config.json").is_file():
@@ -79,6 +101,11 @@ def run_bench(
             models[name] = load_checkpoint(PRETRAINED["default"])[0]
         else:
             models[name] = RMPL(PRESETS[name if name in PRESETS else "small"]).eval()
+    return models
+
+
+def _runners(models: dict[str, RMPL], backends) -> dict[tuple[str, str], Callable]:
+    """(model name, backend) -> a function of (rays, scores)."""
     runners = {}
     for name, model in models.items():
         if "torch" in backends:
@@ -87,44 +114,11 @@ def run_bench(
             )
         if "onnx" in backends:
             runners[(name, "onnx")] = OnnxLifter(model)
-    rows = []
-    jobs = [(v, b) for v in views for b in batches]
-    for v, b in tqdm(jobs, desc="bench", disable=not progress):
-        rays, scores, kp, rig = synthetic_inputs(b, v)
-        with torch.no_grad():
-            for (name, backend), fn in runners.items():
-                rate = _rate(lambda fn=fn, r=rays, s=scores: fn(r, s), b, min_time)
-                rows.append(
-                    {
-                        "method": f"rmpl-{name}",
-                        "backend": backend,
-                        "views": v,
-                        "batch": b,
-                        "fps": rate,
-                    }
-                )
-        if v >= 2:
-            rows.append(
-                {
-                    "method": "triangulate",
-                    "backend": "numpy",
-                    "views": v,
-                    "batch": b,
-                    "fps": _rate(lambda k=kp, s=scores, g=rig: triangulate(k, s, g), b, min_time),
-                }
-            )
-            rows.append(
-                {
-                    "method": "triangulate_robust",
-                    "backend": "numpy",
-                    "views": v,
-                    "batch": b,
-                    "fps": _rate(
-                        lambda k=kp, s=scores, g=rig: triangulate_robust(k, s, g), b, min_time
-                    ),
-                }
-            )
-    return rows
+    return runners
+
+
+def _row(method: str, backend: str, views: int, batch: int, fps: float) -> dict:
+    return {"method": method, "backend": backend, "views": views, "batch": batch, "fps": fps}
 
 
 def peak_memory_mb() -> float:
