@@ -30,6 +30,7 @@ from torch import nn
 
 from rmpl.model.layers import Block
 from rmpl.model.lifter import RMPL
+from rmpl.skeleton import COCO17
 
 __all__ = ["RADIUS_50", "RADIUS_90", "TemporalConfig", "TemporalRMPL", "interpolate_missing"]
 
@@ -53,6 +54,11 @@ class TemporalConfig:
         max_correction: metres; the correction is ``max_correction * tanh(head / max)``.
         sigma_scale: calibration factor of the predicted uncertainty (fitted after training).
         frozen_encoder: the per-frame model is not trained (True) or fine-tuned (False).
+        interpolate_valid: the interpolated-point input of a joint comes from the frames
+            where two or more views agree on it (True), or from every frame where any view
+            saw it (False, the first checkpoints).
+        body_token: add the track's body (each bone's median length over the window's
+            frames where both its ends are triangulable) to every token.
     """
 
     dim: int = 64
@@ -64,6 +70,8 @@ class TemporalConfig:
     max_correction: float = 1.0
     sigma_scale: float = 1.0
     frozen_encoder: bool = True
+    interpolate_valid: bool = False
+    body_token: bool = False
 
     def __post_init__(self) -> None:
         if self.window < 2 or self.depth < 1 or self.dim % self.heads:
@@ -165,6 +173,7 @@ class TemporalRMPL(nn.Module):
         self.point_in = nn.Linear(3 + 3 + 3, c.dim)  # answer, interpolated, base (centred)
         self.flags_in = nn.Linear(3, c.dim)  # valid intersection, views / 4, seen
         self.time_in = nn.Linear(2 * c.time_frequencies, c.dim)
+        self.body_in = nn.Linear(len(COCO17.bones), c.dim) if c.body_token else None
         self.missing = nn.Parameter(torch.zeros(1, 1, 1, c.dim))
         self.joint = nn.Parameter(torch.zeros(1, 1, J, c.dim))
         self.blocks = nn.ModuleList(_SpaceTimeBlock(c) for _ in range(c.depth))
@@ -286,9 +295,9 @@ class TemporalRMPL(nn.Module):
         c = self.config
         B, T, J, _ = answer.shape
         okj = frame_ok[..., None].expand(B, T, J)
-        seen = flags[..., 2] > 0
+        trusted = flags[..., 0 if c.interpolate_valid else 2] > 0
         start = interpolate_missing(answer, okj, times)  # missing frames: from their neighbours
-        interp = interpolate_missing(answer, seen & okj, times)  # unseen joints, likewise
+        interp = interpolate_missing(answer, trusted & okj, times)  # weak joints, likewise
         centre = _window_centre(start, frame_ok)  # (B, 3)
         rel = lambda p: (p - centre[:, None, None]) / POSITION_SCALE  # noqa: E731
         pts = torch.cat(
@@ -299,6 +308,8 @@ class TemporalRMPL(nn.Module):
             frame_ok[..., None, None], x, self.missing.expand_as(x) + self.point_in(pts)
         )
         x = x + self.time_in(self._time_features(times))[:, :, None] + self.joint
+        if self.body_in is not None:
+            x = x + self.body_in(_bone_lengths(answer, flags[..., 0] > 0))[:, None, None]
         for block in self.blocks:
             x = block(x, frame_ok)
         out = self.head(self.norm(x))
@@ -315,6 +326,17 @@ class TemporalRMPL(nn.Module):
         mid = 0.5 * (times[:, :1] + times[:, -1:])
         arg = (times - mid)[..., None] * self.freqs
         return torch.cat([arg.sin(), arg.cos()], -1)
+
+
+def _bone_lengths(points: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """Each COCO-17 bone's median length over the frames where both its ends are valid
+    (else over every frame), metres - 0.3: (B, T, J, 3), (B, T, J) -> (B, num_bones)."""
+    a, b = (torch.tensor(i) for i in zip(*COCO17.bones, strict=True))
+    length = (points[:, :, a] - points[:, :, b]).norm(dim=-1)  # (B, T, bones)
+    ok = valid[:, :, a] & valid[:, :, b]
+    trusted = torch.where(ok, length, torch.full_like(length, math.nan)).nanmedian(1).values
+    every = length.median(1).values
+    return torch.where(torch.isfinite(trusted), trusted, every) - 0.3
 
 
 def _window_centre(points: torch.Tensor, frame_ok: torch.Tensor) -> torch.Tensor:

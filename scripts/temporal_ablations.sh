@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# The temporal-model runs behind docs/results.md ("Temporal lifting"), in order, each resumable
+# (run the script again after a kill). All use configs/temporal.toml with overrides.
+#
+# Usage: scripts/temporal_ablations.sh SEQBANK [RUNS]
+#   SEQBANK: `rmpl poses PATH/cmu_mocap --sequences --out SEQBANK`
+set -euo pipefail
+BANK=$1
+RUNS=${2:-runs}
+T() { # name, then --set overrides
+    local name=$1
+    shift
+    echo "== $name"
+    rmpl train configs/temporal.toml --out "$RUNS/t/$name" --set "sequences=\"$BANK\"" "$@" \
+        > "$RUNS/t/$name.log" 2>&1 || { echo "   failed: see $RUNS/t/$name.log"; exit 1; }
+}
+mkdir -p "$RUNS/t"
+# The two 1,200-step candidates: the first recipe, and with trusted-joint interpolation + a
+# body token.
+T A_base --set model.interpolate_valid=false --set model.body_token=false
+T B_valid_body --set model.interpolate_valid=true --set model.body_token=true
+# Design ablations at 600 steps (B's settings unless named).
+S="--set steps=600 --set val_every=300 --set model.interpolate_valid=true"
+T C_w48_600 $S --set model.body_token=true
+T D_w24_600 $S --set model.body_token=true --set model.window=24
+T E_w96_600 $S --set model.body_token=true --set model.window=96 --set batch_size=6
+T F_nobody_600 $S --set model.body_token=false
+T G_iidnoise_600 $S --set model.body_token=true --set noise.burst_rate=0.0 \
+    --set noise.swap_rate=0.0 --set noise.flip_rate=0.0 --set noise.identity_rate=0.0 \
+    --set noise.gap_rate=0.0 --set noise.corr_scale=0.0 --set noise.iid_scale=1.0
+# The per-frame model fine-tuned with the temporal stage, at about the CPU time of C (each of
+# its steps runs the per-frame model forward and backward in torch).
+T H_finetune $S --set model.body_token=true --set model.frozen_encoder=false --set steps=150 \
+    --set val_every=150
