@@ -133,7 +133,9 @@ class TemporalLifter:
 
         path = Path(PRETRAINED_TEMPORAL.get(str(name_or_path), name_or_path))
         if not (path / "config.json").is_file():
-            raise InputError(path, None, "a temporal checkpoint directory or 'temporal'")
+            raise InputError(
+                path, None, "a temporal checkpoint (config.json + model.safetensors) or 'temporal'"
+            )
         model, meta = load_temporal(path)
         return cls(model, meta)
 

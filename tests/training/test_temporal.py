@@ -234,3 +234,18 @@ def test_lift_and_run_with_a_temporal_model_write_the_uncertainty(setup, tmp_pat
     assert main(["run", *common, "--model", str(d / "full"), "--out", str(run_dir),
                  "--no-pictures"]) == 0  # fmt: skip
     assert load_poses(run_dir / "poses.npz").uncertainty is not None
+
+
+def test_damaged_or_wrong_temporal_checkpoints_are_one_clear_error(setup, tmp_path):
+    import shutil
+
+    d, cfg = setup
+    with pytest.raises(InputError, match="format"):
+        tt.load_temporal(cfg.frame_model)  # a per-frame checkpoint
+    bad = tmp_path / "bad"
+    shutil.copytree(d / "full", bad)
+    (bad / "model.safetensors").write_bytes(b"garbage")
+    with pytest.raises(InputError, match="model.safetensors"):
+        tt.load_temporal(bad)
+    with pytest.raises(InputError, match="config.json"):
+        TemporalLifter.from_pretrained(tmp_path / "nowhere")

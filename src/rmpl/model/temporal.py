@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields, replace
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -255,9 +256,14 @@ class TemporalRMPL(nn.Module):
 
     def _encode(self, rays: torch.Tensor, scores: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """The per-frame model on (N, V, J, 6), (N, V, J): answer, base, tokens, valid, views."""
-        if self.fast_encoder is not None:
-            outs = self.fast_encoder(rays.numpy(), scores.numpy())
-            return tuple(torch.from_numpy(o).to(rays.dtype) for o in outs)
+        if self.fast_encoder is not None:  # in chunks: a long track stays within memory
+            parts = [
+                self.fast_encoder(rays[i : i + 1024].numpy(), scores[i : i + 1024].numpy())
+                for i in range(0, len(rays), 1024)
+            ]
+            return tuple(
+                torch.from_numpy(np.concatenate(o)).to(rays.dtype) for o in zip(*parts, strict=True)
+            )
         grad = torch.is_grad_enabled() and not self.config.frozen_encoder
         with torch.set_grad_enabled(grad):
             enc = self.frame_model.encode(rays, scores)

@@ -151,18 +151,29 @@ def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = No
 
 
 def load_temporal(path: str | Path) -> tuple[TemporalRMPL, dict]:
-    """Load a checkpoint written by :func:`save_temporal`."""
-    from safetensors.torch import load_file
+    """Load a checkpoint written by :func:`save_temporal`.
 
+    Raises:
+        InputError: a missing or damaged ``config.json`` / ``model.safetensors``, a per-frame
+            checkpoint where a temporal one is expected, or weights that do not fit.
+    """
     from rmpl.model.lifter import RMPL, RMPLConfig
+    from rmpl.training.loop import _checkpoint_meta, _checkpoint_tensors
 
     path = Path(path)
-    meta = json.loads((path / "config.json").read_text())
+    cfg_file, weights = path / "config.json", path / "model.safetensors"
+    for f in (cfg_file, weights):
+        if not f.is_file():
+            raise InputError(f, None, "a temporal checkpoint file", "no such file")
+    meta = _checkpoint_meta(cfg_file)
     if meta.get("format") != FORMAT:
-        raise InputError(path / "config.json", "format", FORMAT, meta.get("format"))
-    frame = RMPL(RMPLConfig.from_dict(meta["model"]))
-    model = TemporalRMPL(frame, TemporalConfig.from_dict(meta["temporal"]))
-    model.load_state_dict(load_file(str(path / "model.safetensors")))
+        raise InputError(cfg_file, "format", FORMAT, meta.get("format"))
+    try:
+        frame = RMPL(RMPLConfig.from_dict(meta["model"]))
+        model = TemporalRMPL(frame, TemporalConfig.from_dict(meta["temporal"]))
+    except (TypeError, ValueError, KeyError) as e:
+        raise InputError(cfg_file, "temporal", "an rmpl temporal configuration", e) from None
+    model.load_state_dict(_checkpoint_tensors(weights, model))
     return model.eval(), meta
 
 
