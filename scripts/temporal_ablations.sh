@@ -19,16 +19,16 @@ mkdir -p "$RUNS/t"
 # body token.
 T A_base --set model.interpolate_valid=false --set model.body_token=false
 T B_valid_body --set model.interpolate_valid=true --set model.body_token=true
-# Design ablations at 600 steps (B's settings unless named).
-S="--set steps=600 --set val_every=300 --set model.interpolate_valid=true"
-T C_w48_600 $S --set model.body_token=true
-T D_w24_600 $S --set model.body_token=true --set model.window=24
-T E_w96_600 $S --set model.body_token=true --set model.window=96 --set batch_size=6
-T F_nobody_600 $S --set model.body_token=false
-T G_iidnoise_600 $S --set model.body_token=true --set noise.burst_rate=0.0 \
+# Design ablations at 400 steps (B's settings unless named).
+S="--set steps=400 --set val_every=200 --set model.interpolate_valid=true"
+T C_w48_400 $S --set model.body_token=true
+T D_w24_400 $S --set model.body_token=true --set model.window=24
+T E_w96_400 $S --set model.body_token=true --set model.window=96 --set batch_size=6
+T F_nobody_400 $S --set model.body_token=false
+T G_iidnoise_400 $S --set model.body_token=true --set noise.burst_rate=0.0 \
     --set noise.swap_rate=0.0 --set noise.flip_rate=0.0 --set noise.identity_rate=0.0 \
     --set noise.gap_rate=0.0 --set noise.corr_scale=0.0 --set noise.iid_scale=1.0
 # The per-frame model fine-tuned with the temporal stage, at about the CPU time of C (each of
 # its steps runs the per-frame model forward and backward in torch).
-T H_finetune $S --set model.body_token=true --set model.frozen_encoder=false --set steps=150 \
-    --set val_every=150
+T H_finetune $S --set model.body_token=true --set model.frozen_encoder=false --set steps=100 \
+    --set val_every=100
