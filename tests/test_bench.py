@@ -15,3 +15,11 @@ def test_long_sequence_memory_is_the_child_peak():
     mb, seconds = long_sequence_memory(200)
     assert 0 < mb < parent - 500 and seconds > 0
     del big
+
+
+def test_temporal_track_speed_and_memory_come_from_a_child():
+    from rmpl.bench import temporal_track
+
+    fps, mb = temporal_track(200)
+    assert fps > 0 and mb > 0
+    assert mb != peak_memory_mb()  # the child's own peak, not this process's

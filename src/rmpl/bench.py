@@ -19,7 +19,13 @@ from rmpl.geometry.triangulate import triangulate, triangulate_robust
 from rmpl.model.export import OnnxLifter
 from rmpl.model.lifter import PRESETS, RMPL
 
-__all__ = ["run_bench", "synthetic_inputs", "markdown", "long_sequence_memory"]
+__all__ = [
+    "long_sequence_memory",
+    "markdown",
+    "run_bench",
+    "synthetic_inputs",
+    "temporal_track",
+]
 
 
 def synthetic_inputs(batch: int, views: int, seed: int = 0):
@@ -157,6 +163,50 @@ def markdown(rows: list[dict]) -> str:
     return "\n".join(out)
 
 
+def _child(call: str) -> list:
+    """Run ``rmpl.bench.<call>`` in a fresh process (its peak memory is its own)."""
+    import json
+    import subprocess
+    import sys
+
+    code = f"import json, rmpl.bench as b; print(json.dumps(b.{call}))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"the benchmark child failed:\n{done.stderr.strip()}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def temporal_track(frames: int, views: int = 4) -> tuple[float, float]:
+    """Lift one ``frames``-long track of ``views`` views with the temporal model (the shipped
+    one, else an untrained one on the default per-frame model) in a fresh process.
+
+    Returns:
+        (frames per second of ``TemporalLifter.lift_track``, peak resident memory, MB).
+    """
+    fps, mb = _child(f"_track_long({int(frames)}, {int(views)})")
+    return float(fps), float(mb)
+
+
+def _track_long(frames: int, views: int) -> tuple[float, float]:
+    """The child of :func:`temporal_track`."""
+    from rmpl.inference import PRETRAINED, Lifter
+    from rmpl.inference_temporal import PRETRAINED_TEMPORAL, TemporalLifter
+    from rmpl.model.temporal import TemporalRMPL
+
+    torch.set_num_threads(2)
+    rays, scores, kp, rig = synthetic_inputs(frames, views)
+    del rays
+    if (PRETRAINED_TEMPORAL["temporal"] / "config.json").is_file():
+        lifter = TemporalLifter.from_pretrained()
+    else:
+        shipped = (PRETRAINED["default"] / "config.json").is_file()
+        frame = Lifter.from_pretrained().model if shipped else RMPL(PRESETS["small"])
+        lifter = TemporalLifter(TemporalRMPL(frame))
+    start = time.perf_counter()
+    lifter.lift_track(kp, scores, rig, fps=30.0)
+    return frames / (time.perf_counter() - start), peak_memory_mb()
+
+
 def long_sequence_memory(frames: int, views: int = 4) -> tuple[float, float]:
     """Lift a long random sequence with the default model in a fresh process.
 
@@ -164,16 +214,7 @@ def long_sequence_memory(frames: int, views: int = 4) -> tuple[float, float]:
         (peak resident memory of that process, MB; seconds spent in ``Lifter.lift``). The
         fresh process keeps the benchmark's own allocations out of the peak.
     """
-    import json
-    import subprocess
-    import sys
-
-    call = f"b._lift_long({int(frames)}, {int(views)})"
-    code = f"import json, rmpl.bench as b; print(json.dumps({call}))"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"the long-sequence memory test failed:\n{done.stderr.strip()}")
-    mb, seconds = json.loads(done.stdout.strip().splitlines()[-1])
+    mb, seconds = _child(f"_lift_long({int(frames)}, {int(views)})")
     return float(mb), float(seconds)
 
 

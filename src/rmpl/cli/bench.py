@@ -24,6 +24,12 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--long", type=int, default=10000, help="frames of the memory test sequence (0 = skip)"
     )
+    parser.add_argument(
+        "--temporal",
+        type=int,
+        default=10000,
+        help="frames of the track lifted by the temporal model, 4 views (0 = skip)",
+    )
     parser.add_argument("--out", default=None, help="write the Markdown tables here")
     parser.set_defaults(run=run)
 
@@ -38,7 +44,13 @@ def _ints(text: str) -> list[int]:
 def run(args: argparse.Namespace) -> int:
     import os
 
-    from rmpl.bench import long_sequence_memory, markdown, peak_memory_mb, run_bench
+    from rmpl.bench import (
+        long_sequence_memory,
+        markdown,
+        peak_memory_mb,
+        run_bench,
+        temporal_track,
+    )
 
     load_before = os.getloadavg()
     rows = run_bench(
@@ -54,6 +66,13 @@ def run(args: argparse.Namespace) -> int:
         text += (
             f"\nLifting a {args.long}-frame, 4-view sequence with `Lifter.lift`: "
             f"{seconds:.1f} s, peak resident memory {mb:.0f} MB.\n"
+        )
+    if args.temporal:
+        fps, mb = temporal_track(args.temporal)
+        text += (
+            f"\nThe temporal model on one {args.temporal}-frame, 4-view track "
+            f"(`TemporalLifter.lift_track`): {fps:.0f} frames/s, peak resident memory "
+            f"{mb:.0f} MB.\n"
         )
     text += f"\nPeak resident memory of the whole benchmark process: {peak_memory_mb():.0f} MB.\n"
     load_after = os.getloadavg()

@@ -297,13 +297,18 @@ def write_viewer(
         **_playback(points.shape, fps, frames, ids, names, bones),
         **scene,
     }
-    _write_page(path, meta, view_pts)
+    unc = poses.uncertainty if isinstance(poses, Poses3D) else None
+    _write_page(path, meta, view_pts, unc)
     return path
 
 
-def _write_page(path: Path, meta: dict, view_pts: np.ndarray) -> None:
-    """The page with ``meta`` and then the points (viewer axes) as its data, atomically."""
-    data = json.dumps(meta)[:-1] + ',"points":' + _numbers(view_pts) + "}"
+def _write_page(path: Path, meta: dict, view_pts: np.ndarray, uncertainty=None) -> None:
+    """The page with ``meta`` and then the points (viewer axes) as its data, atomically.
+    ``uncertainty`` (T, P, J) metres, when given, colours the joints."""
+    data = json.dumps(meta)[:-1] + ',"points":' + _numbers(view_pts)
+    if uncertainty is not None:
+        data += ',"uncertainty":' + _numbers(uncertainty)
+    data += "}"
     page = _page(data, meta["title"])
     with atomic_path(path) as tmp:
         tmp.write_text(page, encoding="utf-8")
