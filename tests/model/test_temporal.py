@@ -148,3 +148,28 @@ def test_onnx_encoder_matches_torch():
         b, sb = m(rays, scores, times)
     assert np.allclose(a.numpy(), b.numpy(), atol=2e-3)
     assert np.allclose(sa.numpy(), sb.numpy(), rtol=2e-2, atol=1e-4)
+
+
+def test_fused_start_puts_a_one_view_joint_on_its_ray_at_the_interpolated_depth():
+    from rmpl.model.temporal import _fused_start
+
+    B, T, J = 1, 5, 1
+    times = torch.arange(T, dtype=torch.float32)[None]
+    answer = torch.zeros(B, T, J, 3)
+    answer[0, :, 0] = torch.tensor([[0.0, 0, 1], [9, 9, 9], [9, 9, 9], [9, 9, 9], [0, 0, 1]])
+    flags = torch.zeros(B, T, J, 3)
+    flags[0, [0, 4], 0, 0] = 1  # two views agree on the joint in frames 0 and 4
+    flags[..., 2] = 1  # every frame sees it
+    okj = torch.ones(B, T, J, dtype=torch.bool)
+    ray = torch.zeros(B, T, J, 6)
+    ray[..., :3] = torch.tensor([3.0, 0, 1])  # a camera at x = 3 looking along -x
+    ray[..., 3:] = torch.tensor([-1.0, 0, 0])
+    ray[0, 2, 0, :3] = torch.tensor([3.0, 0.2, 1])  # in frame 2 the ray passes y = 0.2
+    start, extra = _fused_start(answer, answer.clone(), flags, okj, ray, times)
+    assert torch.allclose(start[0, 0, 0], answer[0, 0, 0])  # valid frames keep their answer
+    assert torch.allclose(start[0, 2, 0], torch.tensor([0.0, 0.2, 1.0]), atol=1e-6)
+    assert extra[0, :, 0, 0].tolist() == pytest.approx([0, 1, 2, 1, 0])  # seconds to a valid frame
+    assert (extra[..., 1] == 1).all()
+    flags[..., 0] = 0  # no frame triangulates the joint: the per-frame answer stays
+    start, extra = _fused_start(answer, answer.clone(), flags, okj, ray, times)
+    assert torch.equal(start, answer) and (extra[..., 1] == 0).all()

@@ -60,6 +60,12 @@ class TemporalConfig:
             saw it (False, the first checkpoints).
         body_token: add the track's body (each bone's median length over the window's
             frames where both its ends are triangulable) to every token.
+        fused_start: the point the correction starts from, for a joint no two views agree
+            on in a frame: its position interpolated in time from the frames where two views
+            did, moved onto the ray of the one view that sees it (or kept as it is when none
+            does); the per-frame answer when no frame of the window triangulates the joint.
+            The time to the nearest such frame is an input. False: always the per-frame
+            answer (the first checkpoints).
     """
 
     dim: int = 64
@@ -73,6 +79,7 @@ class TemporalConfig:
     frozen_encoder: bool = True
     interpolate_valid: bool = False
     body_token: bool = False
+    fused_start: bool = False
 
     def __post_init__(self) -> None:
         if self.window < 2 or self.depth < 1 or self.dim % self.heads:
@@ -172,7 +179,8 @@ class TemporalRMPL(nn.Module):
         J = fc.num_joints
         self.token_in = nn.Linear(fc.dim, c.dim)
         self.point_in = nn.Linear(3 + 3 + 3, c.dim)  # answer, interpolated, base (centred)
-        self.flags_in = nn.Linear(3, c.dim)  # valid intersection, views / 4, seen
+        # valid intersection, views / 4, seen (+ fused_start: time to a valid frame, has one)
+        self.flags_in = nn.Linear(5 if c.fused_start else 3, c.dim)
         self.time_in = nn.Linear(2 * c.time_frequencies, c.dim)
         self.body_in = nn.Linear(len(COCO17.bones), c.dim) if c.body_token else None
         self.missing = nn.Parameter(torch.zeros(1, 1, 1, c.dim))
@@ -219,7 +227,8 @@ class TemporalRMPL(nn.Module):
         """Run the per-frame model on every frame with a keypoint.
 
         rays (B, T, V, J, 6), scores (B, T, V, J) -> answer (B, T, J, 3), base (B, T, J, 3),
-        tokens (B, T, J, Df), flags (B, T, J, 3), frame_ok (B, T) bool.
+        tokens (B, T, J, Df), flags (B, T, J, 3), frame_ok (B, T) bool, and the ray of the most
+        confident view of each joint (B, T, J, 6), zero where no view sees it.
         """
         B, T, V, J, _ = rays.shape
         ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
@@ -237,12 +246,16 @@ class TemporalRMPL(nn.Module):
             answer, base = answer.index_copy(0, sel, ans), base.index_copy(0, sel, b)
             tokens, flags = tokens.index_copy(0, sel, tok), flags.index_copy(0, sel, f)
         shape = (B, T, J)
+        best = torch.where(ok, scores, torch.full_like(scores, -1.0)).argmax(2)  # (B, T, J)
+        ray = torch.where(ok[..., None], rays, torch.zeros_like(rays))
+        ray = ray.gather(2, best[:, :, None, :, None].expand(B, T, 1, J, 6))[:, :, 0]
         return (
             answer.view(*shape, 3),
             base.view(*shape, 3),
             tokens.view(*shape, Df),
             flags.view(*shape, 3),
             frame_ok,
+            ray,
         )
 
     def use_onnx(self, threads: int = 2) -> TemporalRMPL:
@@ -293,6 +306,7 @@ class TemporalRMPL(nn.Module):
         tokens: torch.Tensor,
         flags: torch.Tensor,
         frame_ok: torch.Tensor,
+        ray: torch.Tensor,
         times: torch.Tensor,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """The temporal stage on frames already encoded by :meth:`encode_frames` (so that a
@@ -304,6 +318,9 @@ class TemporalRMPL(nn.Module):
         trusted = flags[..., 0 if c.interpolate_valid else 2] > 0
         start = interpolate_missing(answer, okj, times)  # missing frames: from their neighbours
         interp = interpolate_missing(answer, trusted & okj, times)  # weak joints, likewise
+        if c.fused_start:
+            start, extra = _fused_start(answer, start, flags, okj, ray, times)
+            flags = torch.cat([flags, extra], -1)
         centre = _window_centre(start, frame_ok)  # (B, 3)
         rel = lambda p: (p - centre[:, None, None]) / POSITION_SCALE  # noqa: E731
         pts = torch.cat(
@@ -332,6 +349,26 @@ class TemporalRMPL(nn.Module):
         mid = 0.5 * (times[:, :1] + times[:, -1:])
         arg = (times - mid)[..., None] * self.freqs
         return torch.cat([arg.sin(), arg.cos()], -1)
+
+
+def _fused_start(answer, start, flags, okj, ray, times):
+    """See ``TemporalConfig.fused_start``: (start (B, T, J, 3), extra flags (B, T, J, 2))."""
+    valid = (flags[..., 0] > 0) & okj
+    seen = (flags[..., 2] > 0) & okj
+    has = valid.any(1, keepdim=True).expand_as(valid)  # (B, T, J) the window triangulates j
+    interp = interpolate_missing(answer, valid, times)
+    o, d = ray[..., :3], ray[..., 3:]
+    on_ray = o + ((interp - o) * d).sum(-1, keepdim=True) * d  # closest point of the ray
+    weak = torch.where(seen[..., None], on_ray, interp)
+    fused = torch.where((has & ~valid)[..., None], weak, start)
+    # seconds to the nearest frame where two views agree on the joint (2 s at most)
+    B, T, J = valid.shape
+    tt = times[:, :, None].expand(B, T, J)
+    big = torch.full_like(tt, 1e6)
+    prev = torch.where(valid, tt, -big).cummax(1).values
+    nxt = torch.where(valid, -tt, -big).flip(1).cummax(1).values.flip(1).neg()
+    gap = torch.minimum(tt - prev, nxt - tt).clamp(0, 2.0)
+    return fused, torch.stack([gap, has.to(gap.dtype)], -1)
 
 
 def _bone_lengths(points: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
