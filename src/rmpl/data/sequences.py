@@ -366,10 +366,24 @@ def _temporal_noise(kp, sc, uv, joints, times, rig, src: SequenceSource, rng, tr
     (B, T, J, 3), times (B, T). Returns new (kp, sc).
     """
     tn = src.temporal
-    B, T, V, J, _ = kp.shape
-    kp, sc = kp.copy(), sc.copy()
     height = np.nan_to_num(np.ptp(uv, axis=3).max(-1), nan=1.0).clip(5, None)  # (B, T, V)
-    # Correlated error: AR(1) per window, view and joint.
+    kp = kp + _correlated_error(kp.shape, times, height, src, rng)
+    kp, sc = _swap_runs(kp, sc.copy(), times, tn, rng)
+    if len(kp) > 1:
+        kp, sc = _identity_confusion(kp, sc, joints, times, rig, height, tn, rng)
+    missing = _occlusions(kp.shape[:-1], times, tn, rng, train)
+    w, h = rig[3][:, None, :, None, 0], rig[3][:, None, :, None, 1]
+    outside = (kp[..., 0] < 0) | (kp[..., 0] > w - 1) | (kp[..., 1] < 0) | (kp[..., 1] > h - 1)
+    missing |= outside | ~np.isfinite(kp).all(-1) | (sc <= 0)
+    kp[missing] = np.nan
+    sc[missing] = 0.0
+    return kp, sc
+
+
+def _correlated_error(shape, times, height, src: SequenceSource, rng) -> np.ndarray:
+    """2D error (B, T, V, J, 2) pixels, an AR(1) process per window, view and joint."""
+    tn = src.temporal
+    B, T, V, J, _ = shape
     tau = np.exp(rng.uniform(*np.log(tn.corr_tau), (B, 1, 1)))
     dt = np.diff(times, axis=1, prepend=times[:, :1])[:, :, None, None]  # (B, T, 1, 1)
     rho = np.exp(-dt / tau[:, None])  # (B, T, 1, 1)
@@ -380,8 +394,12 @@ def _temporal_noise(kp, sc, uv, joints, times, rig, src: SequenceSource, rng, tr
         r = rho[:, k, ..., None]
         e[:, k] = r * e[:, k - 1] + np.sqrt(1 - r**2) * white[:, k]
     scale = tn.corr_scale * src.joint_sigma[None, None, None, :, None] * height[..., None, None]
-    kp = kp + e * scale
-    # Left/right swap runs and whole-body flip runs.
+    return e * scale
+
+
+def _swap_runs(kp, sc, times, tn: TemporalNoise, rng):
+    """Left/right swap runs of single pairs and whole-body flip runs, per view."""
+    B, T, V, J, _ = kp.shape
     pairs = np.array(COCO17.flip_pairs)
     swap = _runs(rng, (B, V, len(pairs)), tn.swap_rate, tn.swap_seconds, times)  # (B,V,P,T)
     swap |= _runs(rng, (B, V, 1), tn.flip_rate, tn.swap_seconds, times)
@@ -391,23 +409,28 @@ def _temporal_noise(kp, sc, uv, joints, times, rig, src: SequenceSource, rng, tr
         perm[..., a] = np.where(swap[..., i], b, perm[..., a])
         perm[..., b] = np.where(swap[..., i], a, perm[..., b])
     kp = np.take_along_axis(kp, perm[..., None].repeat(2, -1), axis=3)
-    sc = np.take_along_axis(sc, perm, axis=3)
-    # Identity confusion: one view follows the next window's person for a run of frames.
-    if B > 1:
-        other = np.roll(joints, 1, axis=0)
-        K, R, t, _ = rig
-        uv_o = project(
-            other[:, :, None], K[:, None, :, None], R[:, None, :, None], t[:, None, :, None]
-        )
-        which = rng.integers(0, V, B)
-        run = _runs(rng, (B,), tn.identity_rate, tn.identity_seconds, times)  # (B, T)
-        hit = run[:, :, None] & (np.arange(V)[None, None] == which[:, None, None])  # (B,T,V)
-        jitter = 0.01 * height[..., None, None] * rng.standard_normal(kp.shape)
-        conf = rng.uniform(0.3, 0.9, sc.shape)
-        kp = np.where(hit[..., None, None], uv_o + jitter, kp)
-        sc = np.where(hit[..., None], conf, sc)
-    # Occlusion bursts: a joint, a limb or the whole person, in one view, for a while.
-    missing = np.zeros((B, T, V, J), bool)
+    return kp, np.take_along_axis(sc, perm, axis=3)
+
+
+def _identity_confusion(kp, sc, joints, times, rig, height, tn: TemporalNoise, rng):
+    """One view follows the next window's person for a run of frames."""
+    B, T, V = kp.shape[:3]
+    other = np.roll(joints, 1, axis=0)
+    K, R, t, _ = rig
+    uv_o = project(other[:, :, None], K[:, None, :, None], R[:, None, :, None], t[:, None, :, None])
+    which = rng.integers(0, V, B)
+    run = _runs(rng, (B,), tn.identity_rate, tn.identity_seconds, times)  # (B, T)
+    hit = run[:, :, None] & (np.arange(V)[None, None] == which[:, None, None])  # (B, T, V)
+    jitter = 0.01 * height[..., None, None] * rng.standard_normal(kp.shape)
+    conf = rng.uniform(0.3, 0.9, sc.shape)
+    return np.where(hit[..., None, None], uv_o + jitter, kp), np.where(hit[..., None], conf, sc)
+
+
+def _occlusions(shape, times, tn: TemporalNoise, rng, train: bool) -> np.ndarray:
+    """Missing (B, T, V, J): bursts of a joint, a limb or the whole person in one view, runs
+    of frames missing in every view, and (training) independent keypoint removal."""
+    B, T, V, J = shape
+    missing = np.zeros(shape, bool)
     for _ in range(2):
         run = _runs(rng, (B, V), tn.burst_rate / 2, tn.burst_seconds, times)  # (B, V, T)
         kind = rng.random((B, V))
@@ -420,19 +443,12 @@ def _temporal_noise(kp, sc, uv, joints, times, rig, src: SequenceSource, rng, tr
         sel = np.where((kind >= 0.4)[..., None], sel_limb, sel)
         sel = np.where((kind >= 0.7)[..., None], True, sel)
         missing |= run.transpose(0, 2, 1)[..., None] & sel[:, None]
-    # Whole frames missing in every view.
     gap = rng.random(B) < tn.gap_rate
     length = rng.integers(1, tn.gap_frames + 1, B)
     first = rng.integers(0, T, B)
     k = np.arange(T)[None]
-    missing |= (gap[:, None] & (k >= first[:, None]) & (k < (first + length)[:, None]))[
-        :, :, None, None
-    ]
+    gaps = gap[:, None] & (k >= first[:, None]) & (k < (first + length)[:, None])  # (B, T)
+    missing |= gaps[:, :, None, None]
     if train and tn.drop_rate > 0:
         missing |= rng.random(missing.shape) < tn.drop_rate
-    w, h = rig[3][:, None, :, None, 0], rig[3][:, None, :, None, 1]
-    outside = (kp[..., 0] < 0) | (kp[..., 0] > w - 1) | (kp[..., 1] < 0) | (kp[..., 1] > h - 1)
-    missing |= outside | ~np.isfinite(kp).all(-1) | (sc <= 0)
-    kp[missing] = np.nan
-    sc[missing] = 0.0
-    return kp, sc
+    return missing
