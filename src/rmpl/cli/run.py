@@ -136,6 +136,13 @@ def run(args: argparse.Namespace) -> int:
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
     )
     check_estimated(poses, args, args.method)
+    if poses.uncertainty is not None and np.isfinite(poses.uncertainty).any():
+        r = poses.uncertainty[np.isfinite(poses.uncertainty)] * 1000
+        log.info(
+            "temporal model: predicted error radius (50%%) median %.0f mm, 90th percentile "
+            "of joints %.0f mm (per joint in poses.json/npz 'uncertainty'; the viewer colours it)",
+            np.median(r), np.percentile(r, 90),
+        )  # fmt: skip
     overlays = None
     if (args.videos or args.images) and not args.no_overlay:
         overlays = functools.partial(write_input_overlays, args, poses, inputs)
