@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -249,3 +250,21 @@ def test_damaged_or_wrong_temporal_checkpoints_are_one_clear_error(setup, tmp_pa
         tt.load_temporal(bad)
     with pytest.raises(InputError, match="config.json"):
         TemporalLifter.from_pretrained(tmp_path / "nowhere")
+
+
+def test_the_shipped_temporal_model_lifts_the_embedded_walk():
+    import rmpl
+    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
+
+    ex = Path(rmpl.__file__).parent / "examples" / "walk"
+    if not (PRETRAINED_TEMPORAL["temporal"] / "config.json").is_file():
+        pytest.skip("no shipped temporal model in this checkout")
+    rig = rmpl.load_rig(ex / "calibration.toml")
+    kp = rmpl.load_keypoints(ex / "keypoints.json")
+    truth = np.load(ex / "ground_truth.npz")["points"][:, 0]
+    r = TemporalLifter.from_pretrained().lift_track(
+        kp.keypoints[:, :, 0], kp.scores[:, :, 0], rig, fps=kp.fps
+    )
+    err = np.linalg.norm(r.points - truth, axis=-1)
+    assert np.isfinite(err).all() and err.mean() < 0.06  # 4 views of MediaPipe: about 36 mm
+    assert (r.sigma > 0).all() and np.isfinite(r.sigma).all()
