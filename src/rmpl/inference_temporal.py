@@ -193,13 +193,14 @@ class TemporalLifter:
         kp, sc = np.asarray(keypoints, float), np.asarray(scores, float)
         rays, s, Rc = self._rays(kp, sc, rig, up)
         t = frame_times(len(kp), fps, times)
-        enc = self.model.encode_frames(torch.from_numpy(rays)[None], torch.from_numpy(s)[None])
-        points, sigma = self._windows(enc, t, batch_windows)
+        points, sigma = self._windows(rays, s, t, batch_windows)
         points = points @ Rc  # back to the user's world
         return TrackResult(points, sigma, (s > 0).sum(1))
 
-    def _windows(self, enc, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:
-        """Run the temporal stage over overlapping windows of an encoded track and stitch."""
+    def _windows(self, rays, s, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:
+        """Overlapping windows, ``batch`` at a time: each group's frames are encoded by the
+        per-frame model, read by the temporal stage, and stitched with triangular weights
+        (memory stays that of one group, whatever the track's length)."""
         T = len(t)
         W = min(self.window, T)
         starts = window_starts(T, W)
@@ -210,7 +211,10 @@ class TemporalLifter:
         times = torch.from_numpy(t.astype(np.float32))
         for i in range(0, len(starts), batch):
             chunk = starts[i : i + batch]
-            parts = [torch.stack([e[0, a : a + W] for a in chunk]) for e in enc]
+            a0, a1 = chunk[0], chunk[-1] + W  # the frames this group reads
+            r, sc = torch.from_numpy(rays[a0:a1])[None], torch.from_numpy(s[a0:a1])[None]
+            enc = self.model.encode_frames(r, sc)
+            parts = [torch.stack([e[0, a - a0 : a - a0 + W] for a in chunk]) for e in enc]
             tt = torch.stack([times[a : a + W] for a in chunk])
             p, sg = self.model.forward_encoded(*parts, tt)
             for k, a in enumerate(chunk):

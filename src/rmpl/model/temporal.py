@@ -271,8 +271,8 @@ class TemporalRMPL(nn.Module):
         """The per-frame model on (N, V, J, 6), (N, V, J): answer, base, tokens, valid, views."""
         if self.fast_encoder is not None:  # in chunks: a long track stays within memory
             parts = [
-                self.fast_encoder(rays[i : i + 1024].numpy(), scores[i : i + 1024].numpy())
-                for i in range(0, len(rays), 1024)
+                self.fast_encoder(rays[i : i + 256].numpy(), scores[i : i + 256].numpy())
+                for i in range(0, len(rays), 256)
             ]
             return tuple(
                 torch.from_numpy(np.concatenate(o)).to(rays.dtype) for o in zip(*parts, strict=True)
