@@ -81,7 +81,8 @@ def _add_method_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--methods",
         default="triangulate,robust,rmpl",
-        help="comma-separated: triangulate, robust, rmpl[:MODEL]",
+        help="comma-separated: triangulate, robust, rmpl[:MODEL]; sequence methods (tracked "
+        "over time): triangulate+filter, robust+filter, rmpl+filter, rmpl:temporal[:MODEL]",
     )
     parser.add_argument(
         "--views",
