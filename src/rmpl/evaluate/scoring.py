@@ -6,7 +6,7 @@ metres (NaN: not estimated / not annotated) and returns millimetres or percent.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,28 +19,116 @@ if TYPE_CHECKING:
 
 __all__ = [
     "PCP_ACTORS",
+    "PCP_CONVERSIONS",
     "PCP_PARTS",
+    "PCP_PART_NAMES",
+    "PCP_UP",
     "common_mask",
     "condition_label",
     "joint_errors_mm",
     "mean_finite",
     "pcp_actors",
     "pcp_by_actor",
+    "pcp_parts_by_actor",
     "pose_metrics",
+    "shelf14_published",
     "shelf15",
+    "shelf15_published",
 ]
 
 MID_HIP = SHELF14.num_joints  # index of the mid-hip appended after the Shelf-14 joints
 #: The customary ten Shelf/Campus PCP parts: head, arms, legs (Shelf-14 bones) and torso.
 PCP_PARTS = SHELF14.bones[:9] + ((SHELF14.index("neck"), MID_HIP),)
+#: Names of the :data:`PCP_PARTS`, in their order.
+PCP_PART_NAMES = (
+    "head",
+    "right_upper_arm",
+    "right_lower_arm",
+    "left_upper_arm",
+    "left_lower_arm",
+    "right_upper_leg",
+    "right_lower_leg",
+    "left_upper_leg",
+    "left_lower_leg",
+    "torso",
+)
 #: PCP is reported for the customary actors 1-3 (Shelf's actor 4 is left out).
 PCP_ACTORS = 3
+#: World up direction of Shelf and Campus, the datasets PCP is reported on (z up).
+PCP_UP = (0.0, 0.0, 1.0)
+#: COCO-17 indices of the Shelf-14 limb joints (Shelf 0-11), by name.
+_COCO_LIMBS = [COCO17.index(name) for name in SHELF14.joints[:12]]
 
 
 def shelf15(coco: np.ndarray) -> np.ndarray:
     """COCO-17 joints (*, 17, 3) to Shelf-14 plus the mid-hip: shape (*, 15, 3)."""
     shelf = convert(coco, "coco17", "shelf14")
     return _with_mid_hip(shelf)
+
+
+def shelf14_published(
+    coco: np.ndarray, up: Sequence[float] = PCP_UP, ears: bool = True
+) -> np.ndarray:
+    """COCO-17 joints to Shelf-14 with the conversion of the published evaluations.
+
+    This is ``coco2shelf3D`` of the mvpose and VoxelPose evaluation code, which the Shelf
+    and Campus PCP figures of the literature use. The limbs are copied by name. With
+    ``ms`` the shoulder midpoint, ``n`` the nose and ``d = n - ms``, mvpose puts the head
+    top at ``ms + 0.75 d`` plus another ``0.75 d`` along the up axis (``d * [0.75, 0.75,
+    1.5]`` when z is up) and the neck (bottom of the head) at ``ms + 0.5 d``. VoxelPose
+    (``ears=True``) then blends each with an ear-based point: with ``ec`` the ear midpoint,
+    ``hb = (ms + ec) / 2`` and ``ht = 2 ec - hb``, the head top becomes ``0.75 top + 0.25
+    ht`` and the neck ``0.75 neck + 0.25 hb``.
+
+    Args:
+        coco: COCO-17 joints, shape (*, 17, 3), metres; NaN = missing (a derived joint
+            is NaN when one of its sources is).
+        up: the world up direction, a 3-vector (Shelf and Campus: z up).
+        ears: blend with the ear-based points (VoxelPose); False gives mvpose's points.
+
+    Returns:
+        Shelf-14 joints, shape (*, 14, 3).
+
+    >>> import numpy as np
+    >>> x = np.zeros((17, 3))
+    >>> x[[5, 6]] = [[0.2, 0.0, 1.4], [-0.2, 0.0, 1.4]]  # shoulders
+    >>> x[0] = [0.0, 0.1, 1.6]  # nose
+    >>> x[[3, 4]] = [[0.08, 0.0, 1.6], [-0.08, 0.0, 1.6]]  # ears
+    >>> shelf14_published(x)[-2:].round(5).tolist()  # neck, head top
+    [[0.0, 0.0375, 1.5], [0.0, 0.05625, 1.7]]
+    """
+    coco = np.asarray(coco, float)
+    if coco.shape[-2:] != (COCO17.num_joints, 3):
+        raise ValueError(f"coco must have shape (*, 17, 3), got {coco.shape}")
+    u = np.asarray(up, float)
+    if u.shape != (3,) or not np.linalg.norm(u) > 0:
+        raise ValueError(f"up must be a non-zero 3-vector, got {u.tolist()}")
+    u = u / np.linalg.norm(u)
+    ms = coco[..., [COCO17.index("left_shoulder"), COCO17.index("right_shoulder")], :].mean(-2)
+    d = coco[..., COCO17.index("nose"), :] - ms  # (*, 3)
+    vertical = (d @ u)[..., None] * u  # (*, 3) the up component of d
+    top = ms + 0.75 * d + 0.75 * vertical  # horizontal x 0.75, vertical x 1.5
+    bottom = ms + 0.5 * d
+    if ears:
+        ec = coco[..., [COCO17.index("left_ear"), COCO17.index("right_ear")], :].mean(-2)
+        hb = (ms + ec) / 2
+        top = 0.75 * top + 0.25 * (2 * ec - hb)
+        bottom = 0.75 * bottom + 0.25 * hb
+    # (*, 12, 3) limbs + neck + head top, in Shelf-14 order
+    return np.concatenate([coco[..., _COCO_LIMBS, :], bottom[..., None, :], top[..., None, :]], -2)
+
+
+def shelf15_published(coco: np.ndarray) -> np.ndarray:
+    """COCO-17 joints (*, 17, 3) to Shelf-14 (published conversion, z up) + mid-hip: (*, 15, 3)."""
+    return _with_mid_hip(shelf14_published(coco))
+
+
+#: How the predicted COCO-17 joints become Shelf-14 + mid-hip for PCP: "derived" (the
+#: neck and head top of :func:`rmpl.skeleton.convert`) or "published" (the literature's).
+PCP_CONVERSIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "derived": shelf15,
+    "published": shelf15_published,
+}
 
 
 def _with_mid_hip(shelf: np.ndarray) -> np.ndarray:
@@ -95,19 +183,39 @@ def pose_metrics(
     return out
 
 
-def pcp_by_actor(pred: np.ndarray, native: np.ndarray, person: np.ndarray) -> dict[str, float]:
+def pcp_by_actor(
+    pred: np.ndarray, native: np.ndarray, person: np.ndarray, conversion: str = "derived"
+) -> dict[str, float]:
     """PCP (%) per actor label over poses, Shelf-14 parts + torso (to the mid-hip).
 
     Args:
         pred: (n, 17, 3) COCO-17 estimates, metres.
         native: (n, 14, 3) Shelf-14 ground truth, metres.
         person: (n,) actor label per pose.
+        conversion: a key of :data:`PCP_CONVERSIONS` (the predicted neck and head top).
     """
-    parts = pcp_parts(shelf15(pred), _with_mid_hip(native), PCP_PARTS)  # (n, 10)
+    convert_pred = PCP_CONVERSIONS[conversion]
+    parts = pcp_parts(convert_pred(pred), _with_mid_hip(native), PCP_PARTS)  # (n, 10)
     out = {}
     for a in np.unique(person):
         sel = person == a
         out[str(a)] = 100 * float(parts[sel].mean()) if sel.any() else np.nan
+    return out
+
+
+def pcp_parts_by_actor(
+    pred: np.ndarray, native: np.ndarray, person: np.ndarray, conversion: str = "derived"
+) -> dict[str, dict[str, float]]:
+    """PCP (%) of each part per actor label: actor -> {part name: %} (:data:`PCP_PART_NAMES`).
+
+    Args: as :func:`pcp_by_actor`.
+    """
+    convert_pred = PCP_CONVERSIONS[conversion]
+    parts = pcp_parts(convert_pred(pred), _with_mid_hip(native), PCP_PARTS)  # (n, 10)
+    out = {}
+    for a in np.unique(person):
+        share = 100 * parts[person == a].mean(0)  # (10,)
+        out[str(a)] = dict(zip(PCP_PART_NAMES, share.tolist(), strict=True))
     return out
 
 

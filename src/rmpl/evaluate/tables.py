@@ -18,11 +18,13 @@ import numpy as np
 
 from rmpl.evaluate.harness import Evaluation
 from rmpl.evaluate.scoring import (
+    PCP_PART_NAMES,
     common_mask,
     condition_label,
     mean_finite,
     pcp_actors,
     pcp_by_actor,
+    pcp_parts_by_actor,
     pose_metrics,
 )
 from rmpl.io.atomic import atomic_path
@@ -60,20 +62,32 @@ def _common_mpjpe(ev: Evaluation, label: str, ci: int, entries: list[np.ndarray]
     return mean_finite(common)
 
 
-def _pcp_cells(ev: Evaluation, entries: list[np.ndarray]) -> dict[str, float]:
-    """pcp_actor1.. and pcp_mean (%), averaged over the subsets."""
+#: Column-name prefix of the PCP of each conversion (see
+#: :data:`~rmpl.evaluate.scoring.PCP_CONVERSIONS`).
+PCP_PREFIX = {"derived": "pcp_", "published": "pcp_lit_"}
+
+
+def _pcp_cells(
+    ev: Evaluation, entries: list[np.ndarray], conversion: str = "derived"
+) -> dict[str, float]:
+    """pcp_actor1.. and pcp_mean (%), averaged over the subsets (prefix pcp_lit_: published)."""
+    pre = PCP_PREFIX[conversion]
     actors = pcp_actors(ev)
-    pcps = [pcp_by_actor(pred, ev.native, ev.person) for pred in entries]
-    row = {f"pcp_{a.replace(' ', '')}": mean_finite(x.get(a, np.nan) for x in pcps) for a in actors}
-    row["pcp_mean"] = mean_finite(row.values()) if actors else np.nan
+    pcps = [pcp_by_actor(pred, ev.native, ev.person, conversion) for pred in entries]
+    row = {
+        f"{pre}{a.replace(' ', '')}": mean_finite(x.get(a, np.nan) for x in pcps) for a in actors
+    }
+    row[f"{pre}mean"] = mean_finite(row.values()) if actors else np.nan
     return row
 
 
 def results_rows(ev: Evaluation) -> list[dict]:
     """One row per view setting, condition and method (metrics averaged over subsets).
 
-    The last column, ``2d_source``, names the methods' 2D input ("detections",
-    "annotations", "projection" or "keypoints"; "none" for finished results).
+    The column ``2d_source`` names the methods' 2D input ("detections", "annotations",
+    "projection" or "keypoints"; "none" for finished results). On Shelf and Campus the
+    PCP with the published conversion (``pcp_lit_actor1``, ..., ``pcp_lit_mean``) follows
+    it, at the end.
     """
     two_d = "none" if ev.scored else ev.evset.two_d
     rows = []
@@ -96,6 +110,8 @@ def results_rows(ev: Evaluation) -> list[dict]:
                     row |= _pcp_cells(ev, entries)
                 row["dropout"], row["calib_noise"] = condition_label(p, calib)
                 row["2d_source"] = two_d
+                if ev.evset.pcp:
+                    row |= _pcp_cells(ev, entries, "published")
                 rows.append(row)
     return rows
 
@@ -125,8 +141,32 @@ def per_joint_rows(ev: Evaluation) -> list[dict]:
     return rows
 
 
+def _person_pcp_cells(
+    ev: Evaluation, entries: list[np.ndarray], sel: np.ndarray, person: str
+) -> dict[str, float]:
+    """PCP of one person with the published conversion, then per part with both (%).
+
+    Keys: ``pcp_lit``, then ``pcp_<part>`` and ``pcp_lit_<part>`` for the parts of
+    :data:`~rmpl.evaluate.scoring.PCP_PART_NAMES`; averaged over the subsets.
+    """
+    native, labels = ev.native[sel], ev.person[sel]
+    out = {
+        "pcp_lit": mean_finite(
+            pcp_by_actor(x[sel], native, labels, "published").get(person, np.nan) for x in entries
+        )
+    }
+    for conversion, pre in PCP_PREFIX.items():
+        per = [pcp_parts_by_actor(x[sel], native, labels, conversion)[person] for x in entries]
+        out |= {f"{pre}{part}": mean_finite(r[part] for r in per) for part in PCP_PART_NAMES}
+    return out
+
+
 def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
-    """Metrics per person ("person") or clip ("clip"), view setting, condition and method."""
+    """Metrics per person ("person") or clip ("clip"), view setting, condition and method.
+
+    On Shelf and Campus a person's row ends with :func:`_person_pcp_cells` (the PCP with
+    the published conversion and the PCP per part).
+    """
     groups = ev.person if by == "person" else ev.clip
     rows = []
     for label in ev.view_sets:
@@ -152,6 +192,8 @@ def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
                             for x in entries
                         )
                     row["dropout"], row["calib_noise"] = condition_label(p, calib)
+                    if ev.evset.pcp and by == "person":
+                        row |= _person_pcp_cells(ev, entries, sel, str(gname))
                     rows.append(row)
     return rows
 
@@ -183,24 +225,43 @@ COLUMN_TITLES = {
     "clip": "clip",
     "poses": "poses",
     "pcp": "PCP (%)",
+    "pcp_lit": "PCP published (%)",
+    "pcp_lit_mean": "PCP mean, published (%)",
+    "conversion": "neck, head top",
+    "head": "head",
+    "torso": "torso",
+    "right_upper_arm": "R upper arm",
+    "right_lower_arm": "R lower arm",
+    "left_upper_arm": "L upper arm",
+    "left_lower_arm": "L lower arm",
+    "right_upper_leg": "R upper leg",
+    "right_lower_leg": "R lower leg",
+    "left_upper_leg": "L upper leg",
+    "left_lower_leg": "L lower leg",
     "height": "camera height (m)",
     "angle": "angle (deg)",
 }
 
 
+def _title(column: str) -> str:
+    """The Markdown title of a column (``pcp_actor1`` -> "PCP actor 1 (%)")."""
+    if column in COLUMN_TITLES:
+        return COLUMN_TITLES[column]
+    if column.startswith("pcp_lit_"):
+        return f"PCP {column[8:].replace('actor', 'actor ')}, published (%)"
+    if column.startswith("pcp_"):
+        return f"PCP {column[4:].replace('actor', 'actor ')} (%)"
+    return column
+
+
 def markdown_table(rows: list[dict], columns: list[str], pck_mm: float = 150) -> str:
     """Rows as a Markdown table of the given columns (numbers right-aligned)."""
-    titles = []
-    for c in columns:
-        t = COLUMN_TITLES.get(c) or (
-            f"PCP {c[4:].replace('actor', 'actor ')} (%)" if c.startswith("pcp_") else c
-        )
-        titles.append(t.replace("{pck}", f"{pck_mm:g}mm"))
+    titles = [_title(c).replace("{pck}", f"{pck_mm:g}mm") for c in columns]
     text = ["| " + " | ".join(titles) + " |"]
     text.append(
         "|"
         + "|".join(
-            "---" if c in ("views", "method", "joint", "person", "clip") else "---:"
+            "---" if c in ("views", "method", "joint", "person", "clip", "conversion") else "---:"
             for c in columns
         )
         + "|"
@@ -230,6 +291,13 @@ def header_lines(ev: Evaluation) -> list[str]:
             "- PCP: Shelf/Campus convention (a part is correct when the mean of its end-point "
             "errors is at most half its length), ten parts (head, arms, legs, torso to the "
             "mid-hip), actors 1-3; the predicted neck and head top are derived from COCO-17"
+        )
+        lines.append(
+            "- PCP, published (pcp_lit_*): the predicted neck and head top as in the "
+            "literature's evaluations (coco2shelf3D of the mvpose and VoxelPose code, world z "
+            "up; ms = shoulder midpoint, n = nose, ec = ear midpoint, hb = (ms + ec) / 2): "
+            "head top = 0.75 (ms + (n - ms) * [0.75, 0.75, 1.5]) + 0.25 (2 ec - hb), "
+            "neck = 0.75 (ms + 0.5 (n - ms)) + 0.25 hb"
         )
         ears = [COCO17.index("left_ear"), COCO17.index("right_ear")]
         if not any((p.scores[..., ears] > 0).any() for p in es.parts):
@@ -350,6 +418,7 @@ def _results_columns(ev: Evaluation, rows: list[dict]) -> list[str]:
     cols = ["views", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage", "mpjpe_common"]
     if ev.evset.pcp:
         cols += [k for k in rows[0] if k.startswith("pcp_actor")] + ["pcp_mean"]
+        cols += [k for k in rows[0] if k.startswith("pcp_lit_actor")] + ["pcp_lit_mean"]
     if len(cfg.dropout) > 1:
         cols.insert(2, "dropout")
     if cfg.calib_noise is not None:
@@ -363,12 +432,34 @@ def _group_section(ev: Evaluation, by: str, groups: list[dict]) -> list[str]:
     clean = [r for r in groups if r["dropout"] == cfg.dropout[0] and r["calib_noise"] == "none"]
     gcols = ["views", "method", by, "poses", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"]
     if ev.evset.pcp and by == "person":
-        gcols.append("pcp")
+        gcols += ["pcp", "pcp_lit"]
     title = (
         f"Per {'action/clip' if by == 'clip' else 'person'}"
         f" (dropout {cfg.dropout[0]:g}, no calibration noise):"
     )
     return ["", title, "", markdown_table(clean, gcols, 1000 * cfg.pck_threshold)]
+
+
+def _clean(ev: Evaluation, rows: list[dict]) -> list[dict]:
+    """The rows of the clean condition (the first dropout p, no calibration noise)."""
+    p = ev.config.dropout[0]
+    return [r for r in rows if r["dropout"] == p and r["calib_noise"] == "none"]
+
+
+def _pcp_part_section(ev: Evaluation, groups: list[dict]) -> list[str]:
+    """The PCP per part and person of the clean condition, both conversions, with its title."""
+    rows = []
+    for r in _clean(ev, groups):
+        for conversion, pre in PCP_PREFIX.items():
+            row = {k: r[k] for k in ("views", "method", "person")} | {"conversion": conversion}
+            row |= {part: r[pre + part] for part in PCP_PART_NAMES}
+            rows.append(row | {"pcp": r[pre.rstrip("_")]})
+    cols = ["views", "method", "person", "conversion", *PCP_PART_NAMES, "pcp"]
+    title = (
+        f"PCP per part (%, dropout {ev.config.dropout[0]:g}, no calibration noise); neck and "
+        "head top derived (rmpl.skeleton) or published (coco2shelf3D):"
+    )
+    return ["", title, "", markdown_table(rows, cols)]
 
 
 def benchmark_files(ev: Evaluation, command: str) -> dict[str, object]:
@@ -389,6 +480,8 @@ def benchmark_files(ev: Evaluation, command: str) -> dict[str, object]:
     by = "clip" if ev.evset.name == "h36m" else "person"
     groups = per_group_rows(ev, by)
     text += _group_section(ev, by, groups)
+    if ev.evset.pcp and by == "person":
+        text += _pcp_part_section(ev, groups)
     return {
         "results.md": "\n".join(text),
         "results.csv": rows,
