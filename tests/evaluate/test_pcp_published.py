@@ -221,3 +221,13 @@ def test_evaluate_files_carry_the_published_pcp(tmp_path):
     cells = [c.strip() for c in part_rows[0].strip("|").split("|")]
     assert cells[2:5] == ["actor 1", "published", "100.0"] and cells[6] == "50.0"
     assert cells[-1] == "95.0"
+
+
+def test_pcp_without_ears_counts_head_and_torso_wrong():
+    """No ears (2D labels without them): both conversions lose the neck and head top."""
+    pred, native, person = _case()
+    pred[:, [COCO17.index("left_ear"), COCO17.index("right_ear")]] = np.nan
+    for conversion in ("derived", "published"):
+        parts = pcp_parts_by_actor(pred, native, person, conversion)["actor 2"]
+        assert parts["head"] == parts["torso"] == 0.0
+        assert pcp_by_actor(pred, native, person, conversion)["actor 2"] == 80.0

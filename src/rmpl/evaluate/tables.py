@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.evaluate.evalset import EvalSet
 from rmpl.evaluate.harness import Evaluation
 from rmpl.evaluate.scoring import (
     PCP_PART_NAMES,
@@ -271,6 +272,27 @@ def markdown_table(rows: list[dict], columns: list[str], pck_mm: float = 150) ->
     return "\n".join(text) + "\n"
 
 
+def _pcp_header_lines(es: EvalSet) -> list[str]:
+    """How PCP is scored: the convention, both neck and head-top conversions, missing ears."""
+    lines = [
+        "- PCP: Shelf/Campus convention (a part is correct when the mean of its end-point "
+        "errors is at most half its length), ten parts (head, arms, legs, torso to the "
+        "mid-hip), actors 1-3; the predicted neck and head top are derived from COCO-17",
+        "- PCP, published (pcp_lit_*): the predicted neck and head top as in the "
+        "literature's evaluations (coco2shelf3D of the mvpose and VoxelPose code, world z "
+        "up; ms = shoulder midpoint, n = nose, ec = ear midpoint, hb = (ms + ec) / 2): "
+        "head top = 0.75 (ms + (n - ms) * [0.75, 0.75, 1.5]) + 0.25 (2 ec - hb), "
+        "neck = 0.75 (ms + 0.5 (n - ms)) + 0.25 hb",
+    ]
+    ears = [COCO17.index("left_ear"), COCO17.index("right_ear")]
+    if not any((p.scores[..., ears] > 0).any() for p in es.parts):
+        lines.append(
+            "- the 2D has no ears, so the predicted neck and head top (derived from them) "
+            "are missing: the head and torso parts count as wrong (PCP at most 80%)"
+        )
+    return lines
+
+
 def header_lines(ev: Evaluation) -> list[str]:
     """What was evaluated and how: dataset, 2D source, protocol, joints, perturbations."""
     es, cfg = ev.evset, ev.config
@@ -287,24 +309,7 @@ def header_lines(ev: Evaluation) -> list[str]:
         "over the view subsets of a setting",
     ]
     if es.pcp:
-        lines.append(
-            "- PCP: Shelf/Campus convention (a part is correct when the mean of its end-point "
-            "errors is at most half its length), ten parts (head, arms, legs, torso to the "
-            "mid-hip), actors 1-3; the predicted neck and head top are derived from COCO-17"
-        )
-        lines.append(
-            "- PCP, published (pcp_lit_*): the predicted neck and head top as in the "
-            "literature's evaluations (coco2shelf3D of the mvpose and VoxelPose code, world z "
-            "up; ms = shoulder midpoint, n = nose, ec = ear midpoint, hb = (ms + ec) / 2): "
-            "head top = 0.75 (ms + (n - ms) * [0.75, 0.75, 1.5]) + 0.25 (2 ec - hb), "
-            "neck = 0.75 (ms + 0.5 (n - ms)) + 0.25 hb"
-        )
-        ears = [COCO17.index("left_ear"), COCO17.index("right_ear")]
-        if not any((p.scores[..., ears] > 0).any() for p in es.parts):
-            lines.append(
-                "- the 2D has no ears, so the predicted neck and head top (derived from them) "
-                "are missing: the head and torso parts count as wrong (PCP at most 80%)"
-            )
+        lines += _pcp_header_lines(es)
     med, p90, n = ev.reprojection
     if n:
         lines.append(
