@@ -188,13 +188,20 @@ class TemporalLifter:
             batch_windows: windows per forward pass.
 
         Returns:
-            :class:`TrackResult`.
+            :class:`TrackResult`; frames before the first and after the last frame with a
+            keypoint are NaN (the track has not started or has ended there).
         """
         kp, sc = np.asarray(keypoints, float), np.asarray(scores, float)
         rays, s, Rc = self._rays(kp, sc, rig, up)
         t = frame_times(len(kp), fps, times)
+        t = t - t[0]  # in float64: a clock's origin (e.g. Unix time) would swamp float32
         points, sigma = self._windows(rays, s, t, batch_windows)
         points = points @ Rc  # back to the user's world
+        seen = np.flatnonzero((s > 0).any((1, 2)))
+        outside = np.ones(len(t), bool)
+        if len(seen):
+            outside[seen[0] : seen[-1] + 1] = False
+        points[outside], sigma[outside] = np.nan, np.nan
         return TrackResult(points, sigma, (s > 0).sum(1))
 
     def _windows(self, rays, s, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:

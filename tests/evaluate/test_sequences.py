@@ -109,3 +109,18 @@ def test_sequence_methods_are_refused_without_time(tmp_path, capsys):
                  "--methods", "triangulate,triangulate+filter"])  # fmt: skip
     assert code != 0
     assert "--methods" in capsys.readouterr().err
+
+
+def test_a_jump_in_frame_numbers_starts_a_new_stretch():
+    """Campus-like parts (two frame ranges) and clips are tracked and filtered apart."""
+    from rmpl.evaluate.sequences import stretches
+
+    kp, sc, frame, who, X, rig = _two_people(T=30)
+    numbers = np.r_[np.arange(15), np.arange(100, 115)]
+    method = make_sequence_method("triangulate+filter")
+    pred, at = method(kp, sc, frame, 30, rig, 25.0, numbers)
+    assert sorted(np.bincount(at).tolist()) == [2] * 30
+    assert stretches(30, numbers) == [(0, 15, 1), (15, 30, 1)]
+    clips = np.array(["a"] * 10 + ["b"] * 20)
+    assert stretches(30, np.arange(30), clips) == [(0, 10, 1), (10, 30, 1)]
+    assert stretches(0) == [] and stretches(3) == [(0, 3, 1)]

@@ -268,3 +268,64 @@ def test_the_shipped_temporal_model_lifts_the_embedded_walk():
     err = np.linalg.norm(r.points - truth, axis=-1)
     assert np.isfinite(err).all() and err.mean() < 0.06  # 4 views of MediaPipe: about 36 mm
     assert (r.sigma > 0).all() and np.isfinite(r.sigma).all()
+
+
+def test_a_clock_origin_does_not_change_the_answer():
+    """Times on a Unix clock (1.7e9 s) give what the frame rate gives: float32 would not."""
+    kp, sc, rig, _ = _track(T=30)
+    lifter = _lifter(head=True)
+    a = lifter.lift_track(kp, sc, rig, fps=30).points
+    b = lifter.lift_track(kp, sc, rig, times=1.7e9 + np.arange(30) / 30).points
+    assert np.allclose(a, b, atol=1e-4)
+
+
+def test_no_frames_are_invented_before_or_after_a_track():
+    kp, sc, rig, _ = _track(T=40)
+    kp[:15], sc[:15] = np.nan, 0
+    kp[-5:], sc[-5:] = np.nan, 0
+    r = _lifter(window=8).lift_track(kp, sc, rig, fps=30)
+    assert np.isnan(r.points[:15]).all() and np.isnan(r.points[-5:]).all()
+    assert np.isfinite(r.points[15:-5]).all() and np.isnan(r.sigma[:15]).all()
+
+
+def test_temporal_training_config_values_are_checked():
+    for bad in ({"val_every": 0}, {"steps": 0}, {"max_views": 1}, {"min_views": 4, "max_views": 3}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            tt.TemporalTrainConfig(**bad)
+
+
+def test_temporal_run_edge_cases(setup, tmp_path, capsys):
+    """Nobody anywhere is one clear error; 10 frames/s is a rate the model takes (the
+    Butterworth cut-off check does not apply to it); several people write one BVH each."""
+    from rmpl.cli import main
+    from rmpl.cli.run import _write_bvh
+    from rmpl.io.poses import Poses3D
+    from rmpl.pipeline.runner import RunConfig, run
+    from tests.cli.test_commands import make_scene
+
+    d, _ = setup
+    model = str(d / "full")
+    make_scene(tmp_path, views=3, frames=8)
+    far = tmp_path / "far.json"
+    from rmpl.io.keypoints import load_keypoints, save_keypoints
+
+    k = load_keypoints(tmp_path / "kp.json")
+    k.keypoints[:] = 1e9
+    save_keypoints(k, far)
+    args = ["lift", "--calib", str(tmp_path / "calib.toml"), "--keypoints", str(far)]
+    assert main([*args, "--model", model, "--out", str(tmp_path / "o.json")]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+    k = load_keypoints(tmp_path / "kp.json")
+    rig = rmpl_load_rig(tmp_path / "calib.toml")
+    poses = run(k.keypoints, k.scores, rig, fps=10.0, config=RunConfig(model=model))
+    assert np.isfinite(poses.points).any() and poses.uncertainty is not None
+    two = Poses3D(np.repeat(poses.points, 2, axis=1), fps=10.0,
+                  uncertainty=np.repeat(poses.uncertainty, 2, axis=1))  # fmt: skip
+    _write_bvh(two, tmp_path / "bvh")
+    assert sorted(p.name for p in (tmp_path / "bvh").iterdir()) == ["poses_p0.bvh", "poses_p1.bvh"]
+
+
+def rmpl_load_rig(path):
+    from rmpl.io.calibration import load_rig
+
+    return load_rig(path)

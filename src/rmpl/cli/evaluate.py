@@ -207,8 +207,8 @@ def run(args: argparse.Namespace) -> int:
     config = eval_config(
         args.dropout, args.calib_noise, args.calib_reps, args.seed, args.pck, fps=fps
     )
+    _refuse_sequences(args)  # before any model is loaded
     methods = parse_methods(args.methods)
-    _refuse_sequences(args, methods)
     if args.dataset == "recording":
         report = _recording(args, methods)
     elif args.root is None:
@@ -313,9 +313,11 @@ def _benchmark(args, config, methods):
     return run_benchmark(evset, methods, config, args.views, _command(args))
 
 
-def _refuse_sequences(args, methods) -> None:
+def _refuse_sequences(args) -> None:
     """Sequence methods need frames in time: not the synthetic scenes, not --poses."""
-    seq = [n for n, m in methods.items() if getattr(m, "sequence", False)]
+    from rmpl.evaluate.sequences import is_sequence_method
+
+    seq = [n.strip() for n in args.methods.split(",") if is_sequence_method(n.strip())]
     if seq and (args.dataset in ("synthetic", "recording") or args.poses):
         where = "--poses" if args.poses else f"--dataset {args.dataset}"
         raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))

@@ -186,7 +186,7 @@ def _write_bvh(poses, out: Path) -> None:
             person_ids=poses.person_ids[p : p + 1],
             **{
                 k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
-                for k in ("scores", "flags", "num_views")
+                for k in ("scores", "flags", "num_views", "uncertainty")
             },
         )
         name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"

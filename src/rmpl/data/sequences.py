@@ -106,6 +106,10 @@ class SequenceBank:
                     z["subject"].astype(str),
                     float(z["fps"]),
                 )
+        except KeyError as e:
+            raise InputError(
+                path, str(e).strip("'"), "an array of a sequence bank", "none"
+            ) from None
         except (OSError, ValueError) as e:
             raise InputError(path, None, "a sequence bank (.npz)", str(e)) from None
 

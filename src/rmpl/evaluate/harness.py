@@ -312,7 +312,7 @@ def _run_condition(run: _Run, views, si: int, inputs, ci: int, p: float, calib, 
         rig = (run.rigs[r, i] if calib is not None else part.rig)[list(views)]
         for name, method in run.methods.items():
             if getattr(method, "sequence", False):  # tracks, then per-frame predictions
-                pred, at = method(kp, sc, frame, len(part), rig, cfg.fps)
+                pred, at = method(kp, sc, frame, len(part), rig, cfg.fps, part.frames, part.clips)
                 unmatched = np.full(len(at), -1)
                 placed = _assign(pred, at, unmatched, run.gts[i], run.ev.joints, cfg.match_gate)
             else:

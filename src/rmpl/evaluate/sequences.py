@@ -23,7 +23,13 @@ import numpy as np
 
 from rmpl.geometry import Rig
 
-__all__ = ["SEQUENCE_METHODS", "SequenceMethod", "is_sequence_method", "make_sequence_method"]
+__all__ = [
+    "SEQUENCE_METHODS",
+    "SequenceMethod",
+    "is_sequence_method",
+    "make_sequence_method",
+    "stretches",
+]
 
 SEQUENCE_METHODS = ("triangulate+filter", "robust+filter", "rmpl+filter", "rmpl:temporal")
 #: Frame rates of the datasets; Shelf and Campus state none (25 frames/s is assumed).
@@ -74,8 +80,13 @@ def is_sequence_method(spec: str) -> bool:
 
 @dataclass
 class SequenceMethod:
-    """``__call__(kp (M, V, J, 2), sc (M, V, J), frame (M,), num_frames, rig, fps)`` ->
-    predictions (M', J, 3) and their frames (M',)."""
+    """``__call__(kp (M, V, J, 2), sc (M, V, J), frame (M,), num_frames, rig, fps,
+    frame_numbers, clips)`` -> predictions (M', J, 3) and their frame indices (M',).
+
+    ``frame`` indexes the part's frames; ``frame_numbers`` (T,) and ``clips`` (T,) say where
+    time jumps (a new clip, a gap in the numbering): each continuous stretch is tracked and
+    filtered or lifted on its own, at ``fps`` divided by the stretch's frame step.
+    """
 
     base: str  # the per-frame method that feeds the tracker
     temporal: object | None = None  # a TemporalLifter for rmpl:temporal
@@ -84,27 +95,44 @@ class SequenceMethod:
     def __post_init__(self) -> None:
         from rmpl.evaluate.methods import make_method
 
-        self._frame = make_method(self.base)
+        if self.temporal is None:
+            self._frame = make_method(self.base)
+        else:  # track with the temporal model's own per-frame model, as rmpl run does
+            from rmpl.inference import Lifter
 
-    def __call__(self, kp, sc, frame, num_frames: int, rig: Rig, fps: float):
+            lifter = Lifter(self.temporal.model.frame_model)
+            self._frame = lambda kp, sc, rig: lifter.lift(kp, sc, rig).points
+
+    def __call__(self, kp, sc, frame, num_frames: int, rig: Rig, fps: float,
+                 frame_numbers=None, clips=None):  # fmt: skip
+        J = kp.shape[-2]
+        preds, at = [np.zeros((0, J, 3))], [np.zeros(0, int)]
+        for a, b, step in stretches(num_frames, frame_numbers, clips):
+            rows = (frame >= a) & (frame < b)
+            if rows.any():
+                p, t = self._stretch(kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step)
+                preds.append(p)
+                at.append(t + a)
+        return np.concatenate(preds), np.concatenate(at)
+
+    def _stretch(self, kp, sc, frame, num_frames: int, rig: Rig, fps: float):
+        """One continuous stretch: estimate, track, then filter or lift each track."""
         from rmpl.pipeline.association import Association
-        from rmpl.pipeline.runner import RunConfig, smooth
+        from rmpl.pipeline.runner import RunConfig, smooth, track_index
 
         J = kp.shape[-2]
-        if not len(kp):
-            return np.zeros((0, J, 3)), np.zeros(0, int)
         pts = self._frame(kp, sc, rig)  # (M, J, 3)
         cfg = RunConfig()
         rows = [np.flatnonzero(frame == t) for t in range(num_frames)]
         per_frame = [pts[r] for r in rows]
         if not any(np.isfinite(p).any() for p in per_frame):
             return np.zeros((0, J, 3)), np.zeros(0, int)
-        index = _tracks(per_frame, cfg)  # (T, P)
+        index, _ = track_index(per_frame, cfg)  # (T, P), rmpl run's tracker and its rules
         if self.temporal is None:
             tracks = np.full((num_frames, index.shape[1], J, 3), np.nan)
             for t, p in zip(*np.nonzero(index >= 0), strict=True):
                 tracks[t, p] = per_frame[t][index[t, p]]
-            out, _ = smooth(tracks, fps, cfg)
+            out, _ = smooth(tracks, fps, RunConfig(cutoff=min(cfg.cutoff, 0.45 * fps)))
         else:
             from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
 
@@ -115,14 +143,27 @@ class SequenceMethod:
         return out[t_idx, p_idx], t_idx
 
 
-def _tracks(per_frame: list[np.ndarray], cfg) -> np.ndarray:
-    """(T, P) index of each kept track's person per frame (tracks shorter than
-    ``cfg.min_track_frames`` dropped, as ``rmpl run`` does)."""
-    from rmpl.pipeline.tracking import track_indices
+def stretches(num_frames: int, frame_numbers=None, clips=None) -> list[tuple[int, int, int]]:
+    """Continuous stretches [a, b) of a part's frames with their frame step: a new stretch
+    starts at a new clip or where the numbering jumps by other than the usual step.
 
-    index = track_indices(per_frame, max_distance=cfg.track_distance, max_missed=cfg.max_missed)
-    keep = (index >= 0).sum(0) >= cfg.min_track_frames
-    return index[:, keep] if keep.any() else index
+    >>> stretches(6, np.array([0, 1, 2, 10, 11, 12]))
+    [(0, 3, 1), (3, 6, 1)]
+    >>> stretches(4, np.array([0, 5, 10, 15]))
+    [(0, 4, 5)]
+    """
+    if frame_numbers is None or num_frames < 2:
+        return [(0, num_frames, 1)] if num_frames else []
+    f = np.asarray(frame_numbers)
+    d = np.diff(f)
+    step = int(np.median(d)) if len(d) else 1
+    cut = d != step
+    if clips is not None:
+        c = np.asarray(clips)
+        cut |= c[1:] != c[:-1]
+    starts = np.r_[0, np.flatnonzero(cut) + 1]
+    ends = np.r_[starts[1:], num_frames]
+    return [(int(a), int(b), max(step, 1)) for a, b in zip(starts, ends, strict=True)]
 
 
 def make_sequence_method(spec: str) -> SequenceMethod:

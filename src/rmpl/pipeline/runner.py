@@ -315,7 +315,13 @@ def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Run
     frame = Lifter(lifter.model.frame_model)
     up = None if cfg.up is None else np.asarray(cfg.up, float)
     fn = lambda kp, sc, r: (lambda x: (x.points, x.num_views))(frame.lift(kp, sc, r, up=up))  # noqa: E731
+    log.info("the temporal model lifts whole tracks; it replaces the filters (--filter, --cutoff)")
     pts, _ = estimate(people, rig, cfg, fn=fn)
+    J = lifter.num_joints
+    if not any(len(p) for p in pts):  # nobody anywhere: an empty result (refused upstream)
+        T = len(pts)
+        empty = np.zeros((T, 0, J))
+        return np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0
     if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
     else:
@@ -375,8 +381,8 @@ def run(
     """
     cfg = config or RunConfig()
     T = keypoints.shape[0]
-    if temporal and cfg.filter == "butterworth" and fps is not None:
-        check_cutoff(cfg.cutoff, fps)  # before the long part
+    if temporal and cfg.filter == "butterworth" and fps is not None and not _is_temporal(cfg):
+        check_cutoff(cfg.cutoff, fps)  # before the long part (the temporal model has no filter)
     keypoints, scores = drop_far(keypoints, scores, rig)
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
     uncertainty = None

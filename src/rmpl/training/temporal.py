@@ -77,6 +77,22 @@ class TemporalTrainConfig:
     model: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        checks = [
+            ("steps", self.steps >= 1, ">= 1"),
+            ("batch_size", self.batch_size >= 1, ">= 1"),
+            ("val_every", self.val_every >= 1, ">= 1"),
+            ("val_size", self.val_size >= 1, ">= 1"),
+            ("min_views", 1 <= self.min_views <= self.max_views, "in 1..max_views"),
+            ("max_views", self.max_views >= 2, ">= 2 (one-view batches: single_view_rate)"),
+            ("lr", self.lr > 0, "> 0"),
+            ("single_view_rate", 0 <= self.single_view_rate <= 1, "in [0, 1]"),
+            ("threads", self.threads >= 1, ">= 1"),
+        ]
+        for name, ok, expected in checks:
+            if not ok:
+                raise ValueError(f"{name} must be {expected}, got {getattr(self, name)}")
+
     @classmethod
     def from_toml(
         cls, path: str | Path, overrides: list[str] | dict | None = None
