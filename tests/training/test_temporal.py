@@ -298,8 +298,8 @@ def test_temporal_run_edge_cases(setup, tmp_path, capsys):
     """Nobody anywhere is one clear error; 10 frames/s is a rate the model takes (the
     Butterworth cut-off check does not apply to it); several people write one BVH each."""
     from rmpl.cli import main
-    from rmpl.cli.run import _write_bvh
     from rmpl.io.poses import Poses3D
+    from rmpl.pipeline.outputs import _write_bvh
     from rmpl.pipeline.runner import RunConfig, run
     from tests.cli.test_commands import make_scene
 

@@ -34,8 +34,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rmpl.cli._common import load_calibration_and_2d
-    from rmpl.cli.run import FORMATS, write_all
     from rmpl.metrics import mpjpe
+    from rmpl.pipeline.outputs import FORMATS, write_all
     from rmpl.pipeline.runner import RunConfig
     from rmpl.pipeline.runner import run as run_pipeline
     from rmpl.skeleton import KP_STAR

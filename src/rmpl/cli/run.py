@@ -37,10 +37,9 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.cli._common import MODEL_HELP, at_least_one, count, positive
+from rmpl.pipeline.outputs import FORMATS
 
 log = logging.getLogger(__name__)
-
-FORMATS = ("npz", "json", "trc", "c3d", "bvh")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -115,6 +114,7 @@ def _formats(text: str) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     from rmpl.cli._common import check_cameras, check_estimated, load_calibration_and_2d
     from rmpl.cli.lift import axis_vector
+    from rmpl.pipeline.outputs import write_all, write_input_overlays
     from rmpl.pipeline.runner import RunConfig
     from rmpl.pipeline.runner import run as run_pipeline
 
@@ -145,106 +145,9 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     overlays = None
     if (args.videos or args.images) and not args.no_overlay:
-        overlays = functools.partial(write_input_overlays, args, poses, inputs)
+        kind = "videos" if args.videos else "images"
+        overlays = functools.partial(
+            write_input_overlays, args.videos or args.images, kind, poses, inputs
+        )
     write_all(poses, inputs, out, formats, pictures=not args.no_pictures, overlays=overlays)
     return 0
-
-
-def write_input_overlays(args: argparse.Namespace, poses, inputs, out: Path) -> list[Path]:
-    """The result drawn onto the input videos/images, one overlay per camera."""
-    from rmpl.pipeline.detect2d import view_names
-    from rmpl.pipeline.overlay import write_overlays
-
-    kind = "videos" if args.videos else "images"
-    sources = args.videos or args.images
-    names = view_names(sources)
-    if set(names) == set(inputs.rig.names):  # the same matching as load_calibration_and_2d
-        sources = [sources[names.index(n)] for n in inputs.rig.names]
-    return write_overlays(
-        sources,
-        poses,
-        inputs.rig,
-        out,
-        keypoints=inputs.keypoints,
-        scores=inputs.scores,
-        frames=inputs.frames,
-        kind=kind,
-    )
-
-
-def _write_bvh(poses, out: Path) -> None:
-    """BVH holds one skeleton: poses.bvh for one person, else poses_p<id>.bvh each."""
-    import dataclasses
-
-    from rmpl.errors import InputError
-    from rmpl.io.poses import save_poses
-
-    for p, pid in enumerate(poses.person_ids.tolist()):
-        one = dataclasses.replace(
-            poses,
-            points=poses.points[:, p : p + 1],
-            person_ids=poses.person_ids[p : p + 1],
-            **{
-                k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
-                for k in ("scores", "flags", "num_views", "uncertainty")
-            },
-        )
-        name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"
-        try:
-            save_poses(one, out / name)
-        except InputError as e:  # a person too briefly seen for a skeleton
-            log.warning("skipping %s: %s", name, e)
-
-
-def write_all(
-    poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None
-) -> None:
-    """Every requested export plus the viewer page, the pictures and ``overlays(folder)``,
-    committed into ``out`` as one set (:func:`rmpl.io.atomic.staged_folder`): after a failure
-    or a kill, ``out`` holds the previous complete set or this one, never a mix."""
-    from rmpl.io.atomic import staged_folder
-
-    with staged_folder(out) as stage:
-        _export(poses, stage, formats)
-        ok = np.isfinite(poses.points).all(-1)
-        if pictures:
-            _pictures(poses, inputs, stage, ok)
-        if overlays is not None:
-            overlays(stage)
-    log.info(
-        "%d frames, %d people, %.0f%% of joints present; wrote %s",
-        len(poses.points),
-        poses.points.shape[1],
-        100 * ok.mean(),
-        out,
-    )
-    if pictures:
-        log.info("open %s in a browser to see the result", out / "viewer.html")
-
-
-def _export(poses, out: Path, formats: list[str]) -> None:
-    from rmpl.io.poses import save_poses
-
-    for fmt in formats:
-        if fmt in ("trc", "c3d", "bvh") and not poses.fps:
-            log.warning("skipping %s: no frame rate (give --fps)", fmt.upper())
-            continue
-        if fmt == "bvh":
-            _write_bvh(poses, out)
-            continue
-        save_poses(poses, out / f"poses.{fmt}")
-
-
-def _pictures(poses, inputs, out: Path, ok: np.ndarray) -> None:
-    from rmpl.viz.plots import plot_reprojection, plot_skeletons
-    from rmpl.viz.viewer import write_viewer
-
-    write_viewer(poses, out / "viewer.html", cameras=inputs.rig)
-    plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig)
-    busiest = int(np.argmax(ok.sum((1, 2)))) if ok.any() else 0
-    person = int(np.argmax(ok[busiest].sum(-1))) if ok.any() else 0
-    kp, sc = inputs.keypoints[:, :, 0], inputs.scores[:, :, 0]
-    if inputs.keypoints.shape[2] == 1:
-        plot_reprojection(
-            kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest
-        )

@@ -1,0 +1,119 @@
+"""The files of a run folder: exports, the viewer, pictures and overlays, changing as one set.
+
+:func:`write_all` writes every requested export of a :class:`rmpl.io.poses.Poses3D` (NPZ,
+JSON, TRC, C3D, BVH), the viewer page, the pictures and the overlays into a staging folder
+and commits them together (:func:`rmpl.io.atomic.staged_folder`); ``rmpl run`` and
+``rmpl example`` call it.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FORMATS", "write_all", "write_input_overlays"]
+
+log = logging.getLogger(__name__)
+
+FORMATS = ("npz", "json", "trc", "c3d", "bvh")
+
+
+def write_input_overlays(sources: list[str], kind: str, poses, inputs, out: Path) -> list[Path]:
+    """The result drawn onto the input ``kind`` ("videos" or "images" folders) ``sources``,
+    one overlay per camera."""
+    from rmpl.pipeline.detect2d import view_names
+    from rmpl.pipeline.overlay import write_overlays
+
+    names = view_names(sources)
+    if set(names) == set(inputs.rig.names):  # the same matching as load_calibration_and_2d
+        sources = [sources[names.index(n)] for n in inputs.rig.names]
+    return write_overlays(
+        sources,
+        poses,
+        inputs.rig,
+        out,
+        keypoints=inputs.keypoints,
+        scores=inputs.scores,
+        frames=inputs.frames,
+        kind=kind,
+    )
+
+
+def _write_bvh(poses, out: Path) -> None:
+    """BVH holds one skeleton: poses.bvh for one person, else poses_p<id>.bvh each."""
+    import dataclasses
+
+    from rmpl.errors import InputError
+    from rmpl.io.poses import save_poses
+
+    for p, pid in enumerate(poses.person_ids.tolist()):
+        one = dataclasses.replace(
+            poses,
+            points=poses.points[:, p : p + 1],
+            person_ids=poses.person_ids[p : p + 1],
+            **{
+                k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
+                for k in ("scores", "flags", "num_views", "uncertainty")
+            },
+        )
+        name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"
+        try:
+            save_poses(one, out / name)
+        except InputError as e:  # a person too briefly seen for a skeleton
+            log.warning("skipping %s: %s", name, e)
+
+
+def write_all(
+    poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None
+) -> None:
+    """Every requested export plus the viewer page, the pictures and ``overlays(folder)``,
+    committed into ``out`` as one set (:func:`rmpl.io.atomic.staged_folder`): after a failure
+    or a kill, ``out`` holds the previous complete set or this one, never a mix."""
+    from rmpl.io.atomic import staged_folder
+
+    with staged_folder(out) as stage:
+        _export(poses, stage, formats)
+        ok = np.isfinite(poses.points).all(-1)
+        if pictures:
+            _pictures(poses, inputs, stage, ok)
+        if overlays is not None:
+            overlays(stage)
+    log.info(
+        "%d frames, %d people, %.0f%% of joints present; wrote %s",
+        len(poses.points),
+        poses.points.shape[1],
+        100 * ok.mean(),
+        out,
+    )
+    if pictures:
+        log.info("open %s in a browser to see the result", out / "viewer.html")
+
+
+def _export(poses, out: Path, formats: list[str]) -> None:
+    from rmpl.io.poses import save_poses
+
+    for fmt in formats:
+        if fmt in ("trc", "c3d", "bvh") and not poses.fps:
+            log.warning("skipping %s: no frame rate (give --fps)", fmt.upper())
+            continue
+        if fmt == "bvh":
+            _write_bvh(poses, out)
+            continue
+        save_poses(poses, out / f"poses.{fmt}")
+
+
+def _pictures(poses, inputs, out: Path, ok: np.ndarray) -> None:
+    from rmpl.viz.plots import plot_reprojection, plot_skeletons
+    from rmpl.viz.viewer import write_viewer
+
+    write_viewer(poses, out / "viewer.html", cameras=inputs.rig)
+    plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig)
+    busiest = int(np.argmax(ok.sum((1, 2)))) if ok.any() else 0
+    person = int(np.argmax(ok[busiest].sum(-1))) if ok.any() else 0
+    kp, sc = inputs.keypoints[:, :, 0], inputs.scores[:, :, 0]
+    if inputs.keypoints.shape[2] == 1:
+        plot_reprojection(
+            kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest
+        )
