@@ -8,7 +8,6 @@ built on first use (tests.conftest.synth_ready).
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -177,7 +176,7 @@ def test_run_bad_input_is_one_line_and_leaves_nothing(tmp_path, capsys, case, me
 
 
 def test_cache_is_not_reused_for_other_inputs(tmp_path, monkeypatch):
-    from rmpl.cli._common import _load_2d
+    from rmpl.pipeline.inputs import InputSpec, _load_2d
     from rmpl.synth import detect
 
     det = CountingDetector()
@@ -185,10 +184,7 @@ def test_cache_is_not_reused_for_other_inputs(tmp_path, monkeypatch):
     det.close = lambda: None
     save_rig(_rig(2), tmp_path / "calib.toml")
     videos = [str(write_video(tmp_path / f"v{v}.mp4", _frames(4, v))) for v in range(2)]
-    args = argparse.Namespace(
-        keypoints=None, videos=videos, images=None, calib=str(tmp_path / "calib.toml"),
-        detector="counting", fps=None,
-    )  # fmt: skip
+    args = InputSpec(calib=str(tmp_path / "calib.toml"), videos=videos, detector="counting")
     cache = tmp_path / "out" / "keypoints2d.npz"
     first = _load_2d(args, cache)
     assert det.images == 8 and cache.is_file()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -66,17 +65,6 @@ def add_io_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-@dataclass
-class Inputs:
-    """Matched inputs: keypoints (T, V, P, J, 2), scores (T, V, P, J), the rig, frames."""
-
-    rig: Rig
-    keypoints: np.ndarray
-    scores: np.ndarray
-    frames: np.ndarray
-    fps: float | None
-
-
 def check_output(path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() not in OUTPUT_SUFFIXES:
@@ -86,167 +74,15 @@ def check_output(path: str | Path) -> Path:
     return path
 
 
-def _shelf4d_root(paths: list[str]) -> Path | None:
-    """The Shelf 4D folder given as ``--keypoints``: the folder itself or its detection/."""
-    if len(paths) != 1:
-        return None
-    p = Path(paths[0])
-    if (p / "detection" / "0.txt").is_file():
-        return p
-    if p.name == "detection" and (p / "0.txt").is_file():
-        return p.parent
-    return None
+def load_calibration_and_2d(args: argparse.Namespace, cache: Path | None = None):
+    """The command's calibration and 2D input (:func:`rmpl.pipeline.inputs.load_inputs`)."""
+    from rmpl.pipeline.inputs import InputSpec, load_inputs
 
-
-def _shelf4d_keypoints(root: Path):
-    """Shelf/4D-association detections: group each view's candidates into people."""
-    from tqdm import tqdm
-
-    from rmpl.data.shelf import load_shelf
-    from rmpl.io.keypoints import Keypoints2D
-    from rmpl.pipeline.association import group_people
-
-    data = load_shelf(root)
-    groups = [
-        [group_people(c) for c in frame]
-        for frame in tqdm(data.detections, desc="grouping", unit="frame")
-    ]
-    P = max(1, max(len(k) for frame in groups for k, _ in frame))
-    T, V = len(groups), len(data.rig)
-    kp = np.full((T, V, P, 17, 2), np.nan)
-    sc = np.zeros((T, V, P, 17))
-    for t, frame in enumerate(groups):
-        for v, (k, s) in enumerate(frame):
-            kp[t, v, : len(k)], sc[t, v, : len(k)] = k, s
-    return Keypoints2D(kp, sc, "coco17", data.rig.names, np.asarray(data.frames), None)
-
-
-def _load_2d(args: argparse.Namespace, cache: Path | None):
-    """Read 2D files, or detect people in videos/images (cached in ``cache``, with the
-    fingerprint of the inputs beside it in ``<cache>.inputs.json``: a cache made from other
-    inputs, or by another detector, is not reused)."""
-    from rmpl.io.keypoints import load_keypoints
-
-    if getattr(args, "keypoints", None):
-        shelf = _shelf4d_root(args.keypoints)
-        if shelf is not None:
-            return _shelf4d_keypoints(shelf)
-        return load_keypoints(args.keypoints, skeleton=args.skeleton)
-    from rmpl.pipeline.detect2d import detect_images, detect_videos
-
-    kind = "videos" if getattr(args, "videos", None) else "images"
-    sources = args.videos if kind == "videos" else args.images
-    detector = getattr(args, "detector", None) or "mediapipe"
-    stamp = _check_detection_inputs(args, kind, sources, detector)
-    stamp_path = None if cache is None else cache.with_name(cache.stem + ".inputs.json")
-    if cache is not None and cache.is_file():
-        if _same_stamp(stamp_path, stamp):
-            log.info("using cached 2D detections %s (delete it to detect again)", cache)
-            return load_keypoints(cache)
-        log.info("%s was made from other inputs: detecting again", cache)
-    resume = None if cache is None else cache.parent / ".detect2d"
-    if kind == "videos":
-        kp = detect_videos(sources, detector, cache_dir=resume)
-    else:
-        kp = detect_images(sources, detector, fps=args.fps, cache_dir=resume)
-    if cache is not None:
-        _save_cache(kp, cache, stamp_path, stamp, resume)
-    return kp
-
-
-def _check_detection_inputs(args, kind: str, sources: list[str], detector: str) -> dict:
-    """Every check that can fail, before the (long) detection; returns the inputs' stamp."""
-    from rmpl.io.calibration import load_rig
-    from rmpl.pipeline.detect2d import check_image_folders, check_videos, input_fingerprint
-
-    if kind == "videos":
-        check_videos(sources)
-    else:
-        check_image_folders(sources)
-    rig = load_rig(args.calib)
-    if len(rig) != len(sources):
-        raise InputError(
-            args.calib,
-            "cameras",
-            f"one camera per {kind[:-1]}: {len(sources)} cameras for {', '.join(sources)}",
-            f"{len(rig)} cameras {rig.names}",
-        )
-    return {
-        "kind": kind,
-        "detector": detector,
-        "fps": None if kind == "videos" else args.fps,
-        "inputs": input_fingerprint(sources, kind),
-    }
-
-
-def _same_stamp(stamp_path: Path, stamp: dict) -> bool:
-    import json
-
-    try:
-        return json.loads(stamp_path.read_text(encoding="utf-8")) == stamp
-    except (OSError, ValueError):
-        return False
-
-
-def _save_cache(kp, cache: Path, stamp_path: Path, stamp: dict, resume: Path) -> None:
-    """The detections and their inputs' stamp; the per-view partial results go."""
-    import json
-
-    from rmpl.io.atomic import atomic_path
-    from rmpl.io.keypoints import save_keypoints
-
-    save_keypoints(kp, cache)
-    with atomic_path(stamp_path) as tmp:
-        tmp.write_text(json.dumps(stamp, indent=1), encoding="utf-8")
-    for f in resume.glob("*.npz"):  # the per-view partial results are in the cache now
-        f.unlink()
-    if resume.is_dir() and not any(resume.iterdir()):
-        resume.rmdir()
-
-
-def load_calibration_and_2d(args: argparse.Namespace, cache: Path | None = None) -> Inputs:
-    """Read the calibration and the 2D input, and put the views in the rig's order."""
-    from rmpl.io.calibration import load_rig
-
-    rig = load_rig(args.calib)
-    kp = _load_2d(args, cache)
-    keypoints, scores = _match_views(kp, rig, args)
-    source = _source(args)
-    if not (scores > 0).any():
-        raise InputError(source, "scores", "at least one keypoint with confidence > 0", "all zero")
-    return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or args.fps)
+    return load_inputs(InputSpec.from_args(args), cache)
 
 
 def _source(args: argparse.Namespace) -> str:
     return ", ".join(args.keypoints) if getattr(args, "keypoints", None) else "2D input"
-
-
-def _match_views(kp, rig: Rig, args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray]:
-    """Keypoints and scores with the views in the rig's order: by name when every view
-    names a camera, by order (with a warning) when none does; a partial match is refused."""
-    views, V = list(kp.views), kp.keypoints.shape[1]
-    if V != len(rig):
-        raise InputError(
-            _source(args),
-            "views",
-            f"{len(rig)} views to match the cameras {rig.names} of {args.calib}",
-            f"{V} views {views}",
-        )
-    if set(views) == set(rig.names):
-        order = [views.index(n) for n in rig.names]
-        return kp.keypoints[:, order], kp.scores[:, order]
-    if set(views) & set(rig.names):
-        raise InputError(
-            _source(args),
-            "views",
-            f"view names that all match the cameras of {args.calib} (or none, to pair by "
-            f"order): views {sorted(set(views) - set(rig.names))} have no camera, cameras "
-            f"{sorted(set(rig.names) - set(views))} no view",
-            views,
-        )
-    log.warning("no 2D view is named like a camera: pairing views %s with cameras %s by "
-                "order", views, rig.names)  # fmt: skip
-    return kp.keypoints, kp.scores
 
 
 def check_estimated(poses, args: argparse.Namespace, method: str) -> None:
