@@ -43,6 +43,18 @@ def dlt_filtered(b) -> np.ndarray:
     return out
 
 
+def _by_window(m, rays, scores, times):
+    """The model on its own window length: (B, T) windows cut into (B * T / w, w)."""
+    B, T = times.shape
+    w = m.config.window
+    if w >= T or T % w:
+        return m(rays, scores, times)
+    n = T // w
+    cut = lambda x: x.reshape(B * n, w, *x.shape[2:])  # noqa: E731
+    points, sigma = m(cut(rays), cut(scores), cut(times))
+    return points.reshape(B, T, *points.shape[2:]), sigma.reshape(B, T, -1)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
@@ -52,8 +64,11 @@ def main() -> None:
     a = ap.parse_args()
     torch.set_num_threads(2)
     _, val = SequenceBank.load(a.bank).split(["03"])
-    models = {m: load_temporal(m)[0].use_onnx() for m in a.models}
-    window = next(iter(models.values())).config.window
+    models = {m: load_temporal(m)[0] for m in a.models}
+    for m in models.values():
+        if m.config.frozen_encoder:  # a fine-tuned per-frame model runs in torch
+            m.use_onnx()
+    window = max(m.config.window for m in models.values())  # shorter models: cut windows
     kp = list(KP_STAR)
     for v in [int(x) for x in a.views.split(",")]:
         b = SequenceSource(val, seed=777).batch(a.windows, window, v, train=False)
@@ -67,7 +82,7 @@ def main() -> None:
               f"coverage {common.sum() / seen.sum() * 100:5.1f}%")  # fmt: skip
         for name, m in models.items():
             with torch.no_grad():
-                points, sigma = m(rays, scores, times)
+                points, sigma = _by_window(m, rays, scores, times)
                 frame = m.encode_frames(rays, scores)[0]
             e = np.linalg.norm(points.numpy() - b.target, axis=-1)[..., kp]
             ef = np.linalg.norm(frame.numpy() - b.target, axis=-1)[..., kp]
