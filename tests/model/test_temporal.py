@@ -9,13 +9,15 @@ import torch
 from rmpl.model.lifter import PRESETS, RMPL
 from rmpl.model.temporal import TemporalConfig, TemporalRMPL, interpolate_missing
 
+SHIPPED = {"interpolate_valid": True, "body_token": True, "fused_start": True}
 
-def _model(window: int = 8, seed: int = 0, head: bool = True) -> TemporalRMPL:
+
+def _model(window: int = 8, seed: int = 0, head: bool = True, **flags) -> TemporalRMPL:
     torch.manual_seed(seed)
     frame = RMPL(PRESETS["tiny"].with_(robust_anchor=2))
     with torch.no_grad():  # a per-frame model that is not just the ray intersections
         frame.head.weight.normal_(0, 0.02)
-    m = TemporalRMPL(frame, TemporalConfig(dim=32, depth=2, window=window))
+    m = TemporalRMPL(frame, TemporalConfig(dim=32, depth=2, window=window, **flags))
     if head:  # a temporal head that is not zero, so that the temporal stage matters
         with torch.no_grad():
             m.head.weight.normal_(0, 0.05)
@@ -45,9 +47,10 @@ def test_untrained_temporal_model_is_the_per_frame_model():
     assert torch.allclose(sigma, torch.full_like(sigma, 0.05))
 
 
-def test_masked_content_changes_nothing():
+@pytest.mark.parametrize("flags", [{}, SHIPPED], ids=["first", "shipped"])
+def test_masked_content_changes_nothing(flags):
     """What lies under a zero score (a view of a frame, or a whole frame) is never read."""
-    m = _model()
+    m = _model(**flags)
     rays, scores, times = _inputs()
     ref, ref_s = m(rays, scores, times)
     masked_rays, masked_scores = rays.clone(), scores.clone()
@@ -62,8 +65,9 @@ def test_masked_content_changes_nothing():
     assert not torch.allclose(base, ref, atol=1e-4)  # the mask itself does change the answer
 
 
-def test_view_order_does_not_matter():
-    m = _model()
+@pytest.mark.parametrize("flags", [{}, SHIPPED], ids=["first", "shipped"])
+def test_view_order_does_not_matter(flags):
+    m = _model(**flags)
     rays, scores, times = _inputs(V=4)
     perm = torch.tensor([2, 0, 3, 1])
     a, sa = m(rays, scores, times)
@@ -71,8 +75,9 @@ def test_view_order_does_not_matter():
     assert torch.allclose(a, b, atol=1e-5) and torch.allclose(sa, sb, atol=1e-5)
 
 
-def test_a_missing_frame_does_not_turn_its_neighbours_nan_and_is_filled():
-    m = _model()
+@pytest.mark.parametrize("flags", [{}, SHIPPED], ids=["first", "shipped"])
+def test_a_missing_frame_does_not_turn_its_neighbours_nan_and_is_filled(flags):
+    m = _model(**flags)
     rays, scores, times = _inputs(T=8)
     scores[:, 4] = 0
     rays[:, 4] = float("nan")
@@ -80,8 +85,9 @@ def test_a_missing_frame_does_not_turn_its_neighbours_nan_and_is_filled():
     assert torch.isfinite(points).all() and torch.isfinite(sigma).all()
 
 
-def test_a_window_with_nothing_seen_is_nan():
-    m = _model()
+@pytest.mark.parametrize("flags", [{}, SHIPPED], ids=["first", "shipped"])
+def test_a_window_with_nothing_seen_is_nan(flags):
+    m = _model(**flags)
     rays, scores, times = _inputs(B=2)
     scores[1] = 0
     points, sigma = m(rays, scores, times)
