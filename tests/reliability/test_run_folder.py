@@ -33,8 +33,10 @@ def outputs(folder: Path) -> dict[str, object]:
 
 
 def same(a: dict, b: dict) -> bool:
-    return a.keys() == b.keys() and a["names"] == b["names"] and all(
-        np.allclose(a[k], b[k], atol=1e-5) for k in a if k != "names"
+    return (
+        a.keys() == b.keys()
+        and a["names"] == b["names"]
+        and all(np.allclose(a[k], b[k], atol=1e-5) for k in a if k != "names")
     )
 
 

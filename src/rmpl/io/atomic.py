@@ -85,9 +85,7 @@ def clean_stale_parts(folder: str | Path) -> int:
         return 0
     for p in entries:
         m = _PART.match(p.name)
-        stale = (m is not None and not _alive(int(m.group(1)))) or bool(
-            _LEGACY_PART.match(p.name)
-        )
+        stale = (m is not None and not _alive(int(m.group(1)))) or bool(_LEGACY_PART.match(p.name))
         if stale:
             _remove(p)
             removed += 1
