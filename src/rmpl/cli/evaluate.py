@@ -196,128 +196,14 @@ def _command(args) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rmpl.evaluate.methods import parse_methods
-    from rmpl.evaluate.options import eval_config
+    from rmpl.evaluate.command import evaluate_command
 
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise InputError(args.out, None, "an output folder", "an existing file")
-    from rmpl.evaluate.sequences import dataset_fps
-
-    fps = dataset_fps(args.dataset, args.fps)
-    config = eval_config(
-        args.dropout, args.calib_noise, args.calib_reps, args.seed, args.pck, fps=fps
-    )
-    _refuse_sequences(args)  # before any model is loaded
-    methods = parse_methods(args.methods)
-    if args.dataset == "recording":
-        report = _recording(args, methods)
-    elif args.root is None:
-        raise InputError(None, "--root", f"the {args.dataset} dataset folder", "none")
-    elif args.calib is not None:
-        raise InputError(None, "--calib", "only with --dataset recording", args.calib)
-    elif args.dataset == "synthetic":
-        report = _synthetic(args, config, methods)
-    else:
-        report = _benchmark(args, config, methods)
+    report = evaluate_command(args, _command(args))
     print(report.text)
     if args.out:
         from rmpl.evaluate.tables import save_report
 
         save_report(Path(args.out), report, plots=not args.no_plots)
     return 0
-
-
-def _recording(args, methods):
-    """Held-out-view errors on a recording: calibration + 2D files, no ground truth."""
-    from rmpl.cli._common import load_calibration_and_2d
-    from rmpl.evaluate.options import check_min_score, parse_floats, refuse
-    from rmpl.evaluate.protocols import run_recording
-
-    if args.calib is None or not args.keypoints:
-        raise InputError(None, "--calib/--keypoints", "both, for --dataset recording", "missing")
-    dropout = None if parse_floats(args.dropout, "--dropout") == [0.0] else args.dropout
-    refuse(
-        [
-            ("--root", args.root),
-            ("--poses", args.poses),
-            ("--dropout", dropout),
-            ("--calib-noise", args.calib_noise),
-            ("--cameras", args.cameras),
-            ("--subject", args.subject),
-            ("--sequence", args.sequence),
-        ],
-        "with --dataset recording",
-    )
-    check_min_score(args.min_score)
-    inputs = load_calibration_and_2d(args)
-    return run_recording(
-        inputs.keypoints,
-        inputs.scores,
-        inputs.rig,
-        methods,
-        views=args.views,
-        min_score=args.min_score,
-        command=_command(args),
-        calib=args.calib,
-        sources=args.keypoints,
-    )
-
-
-def _synthetic(args, config, methods):
-    from rmpl.evaluate.experiments import SyntheticOptions, run_synthetic
-
-    if args.poses:
-        raise InputError(None, "--poses", "a real dataset (finished results)", "synthetic")
-    opts = SyntheticOptions(
-        args.root, args.cameras, args.views, args.samples, args.holdout, args.heights,
-        args.angles, args.radius, args.pck, args.keypoints,
-    )  # fmt: skip
-    return run_synthetic(opts, methods, config, _command(args))
-
-
-def _benchmark(args, config, methods):
-    """A dataset with 3D ground truth: run the methods, or score finished results."""
-    from rmpl.evaluate.evalset import load_eval_set
-    from rmpl.evaluate.options import refuse
-    from rmpl.evaluate.protocols import load_results, run_benchmark, score_results
-
-    if args.cameras == "sphere" or args.cameras == "random":
-        raise InputError(None, "--cameras", f"camera names for {args.dataset}", args.cameras)
-    if args.poses:
-        given = [
-            ("--views", args.views),
-            ("--dropout", None if args.dropout == "0" else args.dropout),
-            ("--calib-noise", args.calib_noise),
-            ("--keypoints", args.keypoints),
-        ]
-        refuse(given, "with --poses (fixed results)")
-    evset = load_eval_set(
-        args.dataset,
-        args.root,
-        two_d=args.two_d,
-        keypoints=args.keypoints,
-        subject=args.subject,
-        sequence=args.sequence,
-        cameras=args.cameras.split(",") if args.cameras else None,
-        frames=args.frames,
-        seed=args.seed,
-    )
-    if args.poses:
-        return score_results(evset, load_results(args.poses), config, _command(args))
-    if any(getattr(m, "sequence", False) for m in methods.values()):
-        from dataclasses import replace
-
-        from rmpl.evaluate.sequences import sequence_note
-
-        evset = replace(evset, notes=(*evset.notes, sequence_note(args.dataset, args.fps)))
-    return run_benchmark(evset, methods, config, args.views, _command(args))
-
-
-def _refuse_sequences(args) -> None:
-    """Sequence methods need frames in time: not the synthetic scenes, not --poses."""
-    from rmpl.evaluate.sequences import is_sequence_method
-
-    seq = [n.strip() for n in args.methods.split(",") if is_sequence_method(n.strip())]
-    if seq and (args.dataset in ("synthetic", "recording") or args.poses):
-        where = "--poses" if args.poses else f"--dataset {args.dataset}"
-        raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))

@@ -1,0 +1,131 @@
+"""``rmpl evaluate``'s options resolved into one evaluation: which protocol runs, with which
+methods and conditions, and which options cannot apply to it (refused, naming the option).
+
+:func:`evaluate_command` takes the parsed options and the command line to quote, and returns
+the :class:`rmpl.evaluate.tables.Report` that the command prints and saves.
+"""
+
+from __future__ import annotations
+
+from rmpl.errors import InputError
+
+__all__ = ["evaluate_command"]
+
+
+def evaluate_command(args, command: str):
+    """The evaluation ``args`` (the parsed options of ``rmpl evaluate``) ask for."""
+    from rmpl.evaluate.methods import parse_methods
+    from rmpl.evaluate.options import eval_config
+    from rmpl.evaluate.sequences import dataset_fps
+
+    fps = dataset_fps(args.dataset, args.fps)
+    config = eval_config(
+        args.dropout, args.calib_noise, args.calib_reps, args.seed, args.pck, fps=fps
+    )
+    _refuse_sequences(args)  # before any model is loaded
+    methods = parse_methods(args.methods)
+    if args.dataset == "recording":
+        return _recording(args, methods, command)
+    if args.root is None:
+        raise InputError(None, "--root", f"the {args.dataset} dataset folder", "none")
+    if args.calib is not None:
+        raise InputError(None, "--calib", "only with --dataset recording", args.calib)
+    if args.dataset == "synthetic":
+        return _synthetic(args, config, methods, command)
+    return _benchmark(args, config, methods, command)
+
+
+def _recording(args, methods, command: str):
+    """Held-out-view errors on a recording: calibration + 2D files, no ground truth."""
+    from rmpl.evaluate.options import check_min_score, parse_floats, refuse
+    from rmpl.evaluate.protocols import run_recording
+    from rmpl.pipeline.inputs import InputSpec, load_inputs
+
+    if args.calib is None or not args.keypoints:
+        raise InputError(None, "--calib/--keypoints", "both, for --dataset recording", "missing")
+    dropout = None if parse_floats(args.dropout, "--dropout") == [0.0] else args.dropout
+    refuse(
+        [
+            ("--root", args.root),
+            ("--poses", args.poses),
+            ("--dropout", dropout),
+            ("--calib-noise", args.calib_noise),
+            ("--cameras", args.cameras),
+            ("--subject", args.subject),
+            ("--sequence", args.sequence),
+        ],
+        "with --dataset recording",
+    )
+    check_min_score(args.min_score)
+    inputs = load_inputs(InputSpec.from_args(args))
+    return run_recording(
+        inputs.keypoints,
+        inputs.scores,
+        inputs.rig,
+        methods,
+        views=args.views,
+        min_score=args.min_score,
+        command=command,
+        calib=args.calib,
+        sources=args.keypoints,
+    )
+
+
+def _synthetic(args, config, methods, command: str):
+    from rmpl.evaluate.experiments import SyntheticOptions, run_synthetic
+
+    if args.poses:
+        raise InputError(None, "--poses", "a real dataset (finished results)", "synthetic")
+    opts = SyntheticOptions(
+        args.root, args.cameras, args.views, args.samples, args.holdout, args.heights,
+        args.angles, args.radius, args.pck, args.keypoints,
+    )  # fmt: skip
+    return run_synthetic(opts, methods, config, command)
+
+
+def _benchmark(args, config, methods, command: str):
+    """A dataset with 3D ground truth: run the methods, or score finished results."""
+    from rmpl.evaluate.evalset import load_eval_set
+    from rmpl.evaluate.options import refuse
+    from rmpl.evaluate.protocols import load_results, run_benchmark, score_results
+
+    if args.cameras == "sphere" or args.cameras == "random":
+        raise InputError(None, "--cameras", f"camera names for {args.dataset}", args.cameras)
+    if args.poses:
+        given = [
+            ("--views", args.views),
+            ("--dropout", None if args.dropout == "0" else args.dropout),
+            ("--calib-noise", args.calib_noise),
+            ("--keypoints", args.keypoints),
+        ]
+        refuse(given, "with --poses (fixed results)")
+    evset = load_eval_set(
+        args.dataset,
+        args.root,
+        two_d=args.two_d,
+        keypoints=args.keypoints,
+        subject=args.subject,
+        sequence=args.sequence,
+        cameras=args.cameras.split(",") if args.cameras else None,
+        frames=args.frames,
+        seed=args.seed,
+    )
+    if args.poses:
+        return score_results(evset, load_results(args.poses), config, command)
+    if any(getattr(m, "sequence", False) for m in methods.values()):
+        from dataclasses import replace
+
+        from rmpl.evaluate.sequences import sequence_note
+
+        evset = replace(evset, notes=(*evset.notes, sequence_note(args.dataset, args.fps)))
+    return run_benchmark(evset, methods, config, args.views, command)
+
+
+def _refuse_sequences(args) -> None:
+    """Sequence methods need frames in time: not the synthetic scenes, not --poses."""
+    from rmpl.evaluate.sequences import is_sequence_method
+
+    seq = [n.strip() for n in args.methods.split(",") if is_sequence_method(n.strip())]
+    if seq and (args.dataset in ("synthetic", "recording") or args.poses):
+        where = "--poses" if args.poses else f"--dataset {args.dataset}"
+        raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))
