@@ -189,7 +189,6 @@ def temporal_track(frames: int, views: int = 4) -> tuple[float, float]:
 
 def _track_long(frames: int, views: int) -> tuple[float, float]:
     """The child of :func:`temporal_track`."""
-    from rmpl.inference import PRETRAINED, Lifter
     from rmpl.inference_temporal import PRETRAINED_TEMPORAL, TemporalLifter
     from rmpl.model.temporal import TemporalRMPL
 
@@ -199,9 +198,7 @@ def _track_long(frames: int, views: int) -> tuple[float, float]:
     if (PRETRAINED_TEMPORAL["temporal"] / "config.json").is_file():
         lifter = TemporalLifter.from_pretrained()
     else:
-        shipped = (PRETRAINED["default"] / "config.json").is_file()
-        frame = Lifter.from_pretrained().model if shipped else RMPL(PRESETS["small"])
-        lifter = TemporalLifter(TemporalRMPL(frame))
+        lifter = TemporalLifter(TemporalRMPL(_default_lifter().model))
     start = time.perf_counter()
     lifter.lift_track(kp, scores, rig, fps=30.0)
     return frames / (time.perf_counter() - start), peak_memory_mb()
@@ -218,17 +215,21 @@ def long_sequence_memory(frames: int, views: int = 4) -> tuple[float, float]:
     return float(mb), float(seconds)
 
 
-def _lift_long(frames: int, views: int) -> tuple[float, float]:
-    """The child of :func:`long_sequence_memory`."""
+def _default_lifter():
+    """The shipped default model, or an untrained ``small`` one where none is shipped."""
     from rmpl.inference import PRETRAINED, Lifter
 
+    if (PRETRAINED["default"] / "config.json").is_file():
+        return Lifter.from_pretrained()
+    return Lifter(RMPL(PRESETS["small"]))
+
+
+def _lift_long(frames: int, views: int) -> tuple[float, float]:
+    """The child of :func:`long_sequence_memory`."""
     torch.set_num_threads(2)
     rays, scores, kp, rig = synthetic_inputs(frames, views)
     del rays
-    if (PRETRAINED["default"] / "config.json").is_file():
-        lifter = Lifter.from_pretrained()
-    else:
-        lifter = Lifter(RMPL(PRESETS["small"]))
+    lifter = _default_lifter()
     start = time.perf_counter()
     lifter.lift(kp, scores, rig)
     return peak_memory_mb(), time.perf_counter() - start

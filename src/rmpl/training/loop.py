@@ -168,10 +168,6 @@ def apply_overrides(d: dict, overrides: list[str] | None) -> dict:
 
 def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) -> None:
     """Write ``model.safetensors`` and ``config.json`` into directory ``path``, atomically."""
-    from safetensors.torch import save_file
-
-    path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
     meta = {
         "format": "rmpl-checkpoint-1",
         "model": model.config.to_dict(),
@@ -180,6 +176,16 @@ def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) ->
         "units": "metres",
         **(extra or {}),
     }
+    write_checkpoint(model, path, meta)
+
+
+def write_checkpoint(model: torch.nn.Module, path: str | Path, meta: dict) -> None:
+    """A module's weights (``model.safetensors``) and ``meta`` (``config.json``) into
+    directory ``path``, each file atomically."""
+    from safetensors.torch import save_file
+
+    path = Path(path)
+    path.mkdir(parents=True, exist_ok=True)
     tensors = {k: v.detach().contiguous() for k, v in model.state_dict().items()}
     with atomic_path(path / "model.safetensors") as tmp:
         save_file(tensors, str(tmp))

@@ -146,10 +146,8 @@ def build_temporal(cfg: TemporalTrainConfig) -> TemporalRMPL:
 
 def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = None) -> None:
     """Write ``model.safetensors`` (per-frame and temporal weights) and ``config.json``."""
-    from safetensors.torch import save_file
+    from rmpl.training.loop import write_checkpoint
 
-    path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
     meta = {
         "format": FORMAT,
         "model": model.frame_model.config.to_dict(),
@@ -159,11 +157,7 @@ def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = No
         "units": "metres",
         **(extra or {}),
     }
-    tensors = {k: v.detach().contiguous() for k, v in model.state_dict().items()}
-    with atomic_path(path / "model.safetensors") as tmp:
-        save_file(tensors, str(tmp))
-    with atomic_path(path / "config.json") as tmp:
-        tmp.write_text(json.dumps(meta, indent=2))
+    write_checkpoint(model, path, meta)
 
 
 def load_temporal(path: str | Path) -> tuple[TemporalRMPL, dict]:
