@@ -63,19 +63,12 @@ def sequence_note(dataset: str, given: float | None) -> str:
 def is_sequence_method(spec: str) -> bool:
     """Whether ``spec`` names a sequence method: a ``+filter`` method, ``rmpl:temporal[:MODEL]``
     or ``rmpl:PATH`` with a temporal checkpoint at PATH."""
-    import json
-    from pathlib import Path
+    from rmpl.inference_temporal import is_temporal_checkpoint
 
     if spec in SEQUENCE_METHODS[:3] or spec.startswith("rmpl:temporal"):
         return True
     name, _, arg = spec.partition(":")
-    cfg = Path(arg) / "config.json"
-    if name != "rmpl" or not arg or not cfg.is_file():
-        return False
-    try:
-        return json.loads(cfg.read_text()).get("format") == "rmpl-temporal-checkpoint-1"
-    except (OSError, ValueError):
-        return False
+    return name == "rmpl" and bool(arg) and is_temporal_checkpoint(arg)
 
 
 @dataclass
