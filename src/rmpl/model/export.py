@@ -14,42 +14,51 @@ from rmpl.model.lifter import RMPL
 __all__ = ["export_onnx", "OnnxLifter"]
 
 
-def export_onnx(model: RMPL, path: str | Path) -> Path:
-    """Export the model to ONNX with dynamic batch and view axes."""
+def export_onnx(
+    model: torch.nn.Module,
+    path: str | Path,
+    output_names: tuple[str, ...] = ("joints",),
+    num_joints: int | None = None,
+) -> Path:
+    """Export ``model(rays, scores)`` to ONNX with dynamic batch and view axes (outputs
+    ``output_names``, each with a dynamic batch axis)."""
     model = model.eval()
-    rays = torch.randn(2, 3, model.config.num_joints, 6)
+    J = num_joints or model.config.num_joints
+    rays = torch.randn(2, 3, J, 6)
     rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
-    scores = torch.rand(2, 3, model.config.num_joints)
+    scores = torch.rand(2, 3, J)
     with warnings.catch_warnings():  # tracer notes on shape checks: harmless, not for users
         warnings.simplefilter("ignore")
-        _export(model, rays, scores, path)
+        torch.onnx.export(
+            model,
+            (rays, scores),
+            str(path),
+            input_names=["rays", "scores"],
+            output_names=list(output_names),
+            dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}}
+            | {n: {0: "B"} for n in output_names},
+            opset_version=17,
+            dynamo=False,
+        )
     return Path(path)
 
 
-def _export(model: RMPL, rays: torch.Tensor, scores: torch.Tensor, path) -> None:
-    torch.onnx.export(
-        model,
-        (rays, scores),
-        str(path),
-        input_names=["rays", "scores"],
-        output_names=["joints"],
-        dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}, "joints": {0: "B"}},
-        opset_version=17,
-        dynamo=False,
-    )
+def _session(model: torch.nn.Module, threads: int, **export):
+    """An onnxruntime session on ``model`` exported by :func:`export_onnx` to a temporary file."""
+    import onnxruntime as ort
+
+    with tempfile.TemporaryDirectory() as d:
+        path = export_onnx(model, Path(d) / "model.onnx", **export)
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = threads
+        return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
 
 
 class OnnxLifter:
     """The same network run by onnxruntime: ``__call__(rays, scores) -> joints`` (numpy)."""
 
     def __init__(self, model: RMPL, threads: int = 2) -> None:
-        import onnxruntime as ort
-
-        with tempfile.TemporaryDirectory() as d:
-            path = export_onnx(model, Path(d) / "rmpl.onnx")
-            opts = ort.SessionOptions()
-            opts.intra_op_num_threads = threads
-            self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        self.session = _session(model, threads)
 
     def __call__(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
         return self.session.run(None, {"rays": rays, "scores": scores})[0]
@@ -76,30 +85,11 @@ class OnnxEncoder:
     """
 
     def __init__(self, model: RMPL, threads: int = 2) -> None:
-        import onnxruntime as ort
-
+        names = ("answer", "base", "tokens", "valid", "views")
         wrapper = _EncodeOutputs(model.eval())
-        rays = torch.randn(2, 3, model.config.num_joints, 6)
-        rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
-        scores = torch.rand(2, 3, model.config.num_joints)
-        names = ["answer", "base", "tokens", "valid", "views"]
-        with tempfile.TemporaryDirectory() as d, warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            path = Path(d) / "encode.onnx"
-            torch.onnx.export(
-                wrapper,
-                (rays, scores),
-                str(path),
-                input_names=["rays", "scores"],
-                output_names=names,
-                dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}}
-                | {n: {0: "B"} for n in names},
-                opset_version=17,
-                dynamo=False,
-            )
-            opts = ort.SessionOptions()
-            opts.intra_op_num_threads = threads
-            self.session = ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        self.session = _session(
+            wrapper, threads, output_names=names, num_joints=model.config.num_joints
+        )
 
     def __call__(self, rays: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, ...]:
         return tuple(self.session.run(None, {"rays": rays, "scores": scores}))
