@@ -1,0 +1,164 @@
+"""A participant's height from the bone lengths of one 3D track.
+
+Body segment lengths scale with stature: Drillis and Contini (1966), as reproduced in Winter,
+*Biomechanics and Motor Control of Human Movement* (4th ed., 2009, Fig. 4.1), give each
+segment as a fraction of the standing height H. The heights above the floor of the landmarks
+rmpl's joints stand for are
+
+====================================  ========
+landmark                              height
+====================================  ========
+shoulder (acromion)                   0.818 H
+hip (greater trochanter)              0.530 H
+knee                                  0.285 H
+ankle (lateral malleolus)             0.039 H
+====================================  ========
+
+so the shank (knee to ankle) is 0.246 H, the thigh (hip to knee) 0.245 H and the trunk
+(mid-hip to mid-shoulder) 0.288 H. Their sum, one leg and the trunk, spans 0.779 H; the rest
+is the ankle's height above the floor (0.039 H) and the shoulder to the crown (0.182 H).
+
+:func:`estimate_height` measures each of the five bones (both shanks, both thighs, the
+trunk) in every frame where both its ends are present, takes the median over the frames
+(robust to a minority of bad frames; a bone's length does not change with pose), averages
+left and right, and returns ``(shank + thigh + trunk) / 0.779``. The chain's segments are
+long and seen by most detectors, which is why it is used rather than the head (COCO-17 has
+no crown) or the arms.
+
+Accuracy: the proportions are population means; individuals vary by a few per cent, and the
+COCO-17 hip and shoulder keypoints of a detector are not exactly the trochanter and the
+acromion. Read the value as an estimate to +-5%, not a measurement.
+
+Shape glossary: ``T`` frames, ``J`` joints. Metres.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rmpl.errors import InputError
+from rmpl.skeleton import SKELETONS
+
+__all__ = ["HEIGHT_FRACTIONS", "CHAIN_FRACTION", "bone_lengths", "estimate_height"]
+
+#: Segment lengths as fractions of standing height (Drillis & Contini 1966, in Winter 2009,
+#: Fig. 4.1): shank = knee 0.285 - ankle 0.039, thigh = hip 0.530 - knee 0.285,
+#: trunk = shoulder 0.818 - hip 0.530.
+HEIGHT_FRACTIONS: dict[str, float] = {
+    "shank": 0.285 - 0.039,
+    "thigh": 0.530 - 0.285,
+    "trunk": 0.818 - 0.530,
+}
+#: The fraction of the height spanned by shank + thigh + trunk (0.779).
+CHAIN_FRACTION = sum(HEIGHT_FRACTIONS.values())
+
+# Each measured bone: (segment, ends). An end is one joint name or a pair whose midpoint
+# is used (the trunk runs from mid-hip to mid-shoulder).
+_BONES: dict[str, tuple[str, tuple, tuple]] = {
+    "left_shank": ("shank", ("left_knee",), ("left_ankle",)),
+    "right_shank": ("shank", ("right_knee",), ("right_ankle",)),
+    "left_thigh": ("thigh", ("left_hip",), ("left_knee",)),
+    "right_thigh": ("thigh", ("right_hip",), ("right_knee",)),
+    "trunk": ("trunk", ("left_hip", "right_hip"), ("left_shoulder", "right_shoulder")),
+}
+
+
+def _checked(points, skeleton: str) -> np.ndarray:
+    if skeleton not in SKELETONS:
+        raise InputError(None, "skeleton", f"one of {sorted(SKELETONS)}", skeleton)
+    try:
+        x = np.asarray(points, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(None, "points", "an array of numbers (T, J, 3)", "other") from None
+    J = SKELETONS[skeleton].num_joints
+    if x.ndim != 3 or x.shape[1:] != (J, 3):
+        raise InputError(None, "points", f"shape (T, {J}, 3) for {skeleton}", x.shape)
+    return x
+
+
+def _end(points: np.ndarray, names: tuple[str, ...], skeleton: str) -> np.ndarray:
+    """One end of a bone, (T, 3): a joint or the midpoint of two (NaN if either is)."""
+    skel = SKELETONS[skeleton]
+    try:
+        idx = skel.indices(names)
+    except KeyError:
+        raise InputError(
+            None, "skeleton", f"a joint set with {', '.join(names)} (e.g. coco17)", skeleton
+        ) from None
+    return points[:, idx].mean(1)
+
+
+def bone_lengths(points: np.ndarray, skeleton: str = "coco17") -> dict[str, tuple[float, int]]:
+    """The median length of each bone of the height chain over a track.
+
+    Args:
+        points: one person's joints, shape (T, J, 3), metres; NaN = missing.
+        skeleton: the joint set (its joint names must include COCO-17's legs, hips and
+            shoulders).
+
+    Returns:
+        ``{bone: (median length in metres, number of frames with both ends)}`` for
+        left_shank, right_shank, left_thigh, right_thigh and trunk; the length is NaN when
+        no frame has both ends.
+
+    >>> pts = np.full((2, 17, 3), np.nan)
+    >>> pts[:, 13], pts[:, 15] = [0, 0, 0.5], [0, 0, 0.1]  # left knee, left ankle
+    >>> length, frames = bone_lengths(pts)["left_shank"]
+    >>> round(length, 3), frames
+    (0.4, 2)
+    """
+    x = _checked(points, skeleton)
+    out = {}
+    for bone, (_, a, b) in _BONES.items():
+        d = np.linalg.norm(_end(x, a, skeleton) - _end(x, b, skeleton), axis=-1)
+        ok = np.isfinite(d)
+        out[bone] = (float(np.median(d[ok])) if ok.any() else float("nan"), int(ok.sum()))
+    return out
+
+
+def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: int = 5) -> float:
+    """Standing height of one tracked person from its bone lengths (see the module docstring).
+
+    Args:
+        points: one person's joints over time, shape (T, J, 3), metres; NaN = missing.
+        skeleton: the joint set of ``points``.
+        min_frames: a bone counts only when both its ends are present in at least this
+            many frames.
+
+    Returns:
+        The estimated height in metres, ``(shank + thigh + trunk) / 0.779`` with each
+        segment's median length over the track (shank and thigh: the mean of the sides
+        that count).
+
+    Raises:
+        InputError: ``points`` is not (T, J, 3) for ``skeleton``, or the track has too
+            little data: the trunk, or both shanks, or both thighs, are seen in fewer than
+            ``min_frames`` frames.
+
+    >>> H = 1.80  # a person standing upright, built from the same proportions
+    >>> pts = np.full((6, 17, 3), np.nan)
+    >>> for side, x in ((0, 0.1), (1, -0.1)):  # COCO-17: left/right hip 11/12, knee 13/14,
+    ...     pts[:, 11 + side] = [x, 0, 0.530 * H]  # ankle 15/16, shoulder 5/6
+    ...     pts[:, 13 + side] = [x, 0, 0.285 * H]
+    ...     pts[:, 15 + side] = [x, 0, 0.039 * H]
+    ...     pts[:, 5 + side] = [1.5 * x, 0, 0.818 * H]
+    >>> round(estimate_height(pts), 3)
+    1.8
+    """
+    lengths = bone_lengths(points, skeleton)
+    segment: dict[str, list[float]] = {s: [] for s in HEIGHT_FRACTIONS}
+    for bone, (seg, _, _) in _BONES.items():
+        length, frames = lengths[bone]
+        if frames >= min_frames:
+            segment[seg].append(length)
+    lacking = [s for s, v in segment.items() if not v]
+    if lacking:
+        seen = ", ".join(f"{b} {n}" for b, (_, n) in lengths.items())
+        raise InputError(
+            None,
+            "points",
+            f"a track whose {' and '.join(lacking)} are seen (both ends present) in at least "
+            f"{min_frames} frames, for a height",
+            f"frames per bone: {seen}",
+        )
+    return sum(float(np.mean(v)) for v in segment.values()) / CHAIN_FRACTION
