@@ -381,3 +381,111 @@ def test_load_errors_name_the_file_and_field(tmp_path):
     assert info.value.field == "flags" and Path(info.value.path) == npz
     with pytest.raises(InputError, match="write-only"):
         load_poses(tmp_path / "p.c3d")
+
+
+# --------------------------------------------------------------------------- per-view records
+
+
+def _with_views(T=4, P=2, V=3, seed=0) -> Poses3D:
+    """Poses with every per-view field and heights; the last person absent in frame 0."""
+    from rmpl.io.poses import ViewStatus
+
+    base = _poses(T=T, P=P, seed=seed)
+    points = base.points.copy()
+    points[0, P - 1] = np.nan
+    rng = np.random.default_rng(seed)
+    absent = np.isnan(points).all((-1, -2))[..., None]
+    status = np.where(absent, ViewStatus.ABSENT, rng.integers(1, 6, size=(T, P, V)))
+    return Poses3D(
+        points,
+        flags=np.where(np.isnan(points).any(-1), 0, 1),
+        membership=np.where(absent, -1, rng.integers(-1, 3, size=(T, P, V))),
+        views_excluded=rng.integers(0, 17, size=(T, P, V)),
+        view_status=status,
+        camera_names=[f"cam{v}" for v in range(V)],
+        heights=np.array([1.71, np.nan])[:P],
+        fps=30.0,
+    )
+
+
+@pytest.mark.parametrize("ext", ["npz", "json"])
+def test_per_view_fields_and_heights_round_trip(tmp_path, ext):
+    poses = _with_views()
+    back = load_poses(save_poses(poses, tmp_path / f"p.{ext}"))
+    for name in ("membership", "views_excluded", "view_status", "heights"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(poses, name), err_msg=name)
+    assert back.camera_names == ("cam0", "cam1", "cam2")
+    assert back.membership.dtype == np.int64 and back.view_status.dtype == np.uint8
+
+
+def test_json_marks_views_and_suspect_joints(tmp_path):
+    from rmpl.io.poses import ViewStatus
+
+    poses = _with_views(T=3, P=1, V=2)
+    poses.view_status[1:] = ViewStatus.AGREES  # frame 0: the person is absent
+    poses.view_status[1, 0, 1] = ViewStatus.DISAGREES
+    doc = json.loads(save_poses(poses, tmp_path / "p.json").read_text())
+    assert doc["view_status_values"]["disagrees"] == 2
+    assert doc["view_status"][1][0] == [1, 2]
+    suspect = np.array(doc["suspect"])  # (T, P, J)
+    present = ~np.isnan(poses.points).any(-1)
+    np.testing.assert_array_equal(suspect[1], present[1])
+    assert present[1].any() and not suspect[[0, 2]].any()
+    assert doc["heights"][0] == pytest.approx(1.71)
+
+
+@pytest.mark.parametrize("ext", ["npz", "json"])
+def test_files_without_per_view_fields_still_load(tmp_path, ext):
+    poses = _poses(T=3, P=2)
+    path = save_poses(poses, tmp_path / f"p.{ext}")
+    if ext == "json":  # an older file: none of the new keys at all
+        doc = json.loads(path.read_text())
+        assert "membership" not in doc and "view_status" not in doc
+    back = load_poses(path)
+    assert back.membership is None and back.view_status is None and back.heights is None
+    assert back.camera_names is None
+
+
+def test_invalid_per_view_fields_are_refused(tmp_path):
+    from rmpl.io.poses import ViewStatus
+
+    good = _with_views()
+    pts = good.points
+
+    def make(**kw):
+        fields = {
+            "membership": good.membership,
+            "view_status": good.view_status,
+            "camera_names": good.camera_names,
+        }
+        fields.update(kw)
+        return Poses3D(pts, **fields)
+
+    with pytest.raises(InputError, match="membership"):
+        make(membership=np.full(good.membership.shape, -2))
+    with pytest.raises(InputError, match="membership"):
+        make(membership=good.membership[:, :, :, None])
+    with pytest.raises(InputError, match="one number of views"):
+        make(camera_names=["a", "b"])
+    with pytest.raises(InputError, match="distinct"):
+        make(camera_names=["a", "a", "b"])
+    with pytest.raises(InputError, match="ViewStatus"):
+        make(view_status=np.full(good.view_status.shape, 9))
+    absent_marked = good.view_status.copy()
+    absent_marked[0, 1] = ViewStatus.AGREES  # person 1 has no joint in frame 0
+    with pytest.raises(InputError, match="ABSENT"):
+        make(view_status=absent_marked)
+    with pytest.raises(InputError, match="views_excluded"):
+        make(views_excluded=np.full(good.view_status.shape, -1))
+    with pytest.raises(InputError, match="heights"):
+        Poses3D(pts, heights=[1.7])
+    with pytest.raises(InputError, match="heights"):
+        Poses3D(pts, heights=[1.7, -1.0])
+    # A file whose view_status disagrees with its points names the file.
+    path = save_poses(good, tmp_path / "p.json")
+    doc = json.loads(path.read_text())
+    doc["view_status"][0][1] = [1, 1, 1]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="ABSENT") as info:
+        load_poses(path)
+    assert Path(info.value.path) == path and info.value.field == "view_status"

@@ -1,13 +1,19 @@
 """3D poses out (NPZ, JSON, OpenSim TRC, C3D, BVH) and back in (NPZ, JSON, TRC).
 
 A :class:`Poses3D` holds world points in metres, shape (T, P, J, 3), NaN where a joint is
-missing, with optional per-joint scores, source flags (:class:`JointSource`) and view counts.
+missing, with optional per-joint scores, source flags (:class:`JointSource`) and view counts,
+and optional per-view records of a run (shape (T, P, V): which 2D person of each view a track
+used, how many of its keypoints the estimator left out, and how the view's 2D relates to the
+3D, :class:`ViewStatus`) and per-person heights.
 
 File formats, chosen from the extension by :func:`save_poses`:
 
 ``.npz``, ``.json``
     Everything in the dataclass, in metres. The JSON names its ``units`` and the skeleton's
-    ``joints``, writes ``null`` for a missing coordinate, and lists the flag values.
+    ``joints``, writes ``null`` for a missing coordinate, and lists the flag values. With a
+    ``view_status`` it lists the status values and adds ``suspect`` (T, P, J): the joints
+    present in a frame where at least one view disagrees with the person's 3D (derived
+    on writing, ignored on reading). Files without the per-view fields load as before.
 ``.trc``
     OpenSim marker trajectories: tab-separated, the header lines ``PathFileType 4 (X/Y/Z)
     <file name>``, ``DataRate CameraRate NumFrames NumMarkers Units OrigDataRate
@@ -68,9 +74,20 @@ from rmpl.io.keypoints import (
 )
 from rmpl.skeleton import SKELETONS
 
-__all__ = ["JointSource", "POSE_FORMATS", "Poses3D", "load_poses", "save_poses"]
+__all__ = ["JointSource", "POSE_FORMATS", "Poses3D", "ViewStatus", "load_poses", "save_poses"]
 
 POSE_FORMATS = ("npz", "json", "trc", "c3d", "bvh")
+#: The optional arrays of :class:`Poses3D`, stored as they are in NPZ and JSON.
+_OPTIONAL = (
+    "scores",
+    "flags",
+    "num_views",
+    "uncertainty",
+    "membership",
+    "views_excluded",
+    "view_status",
+    "heights",
+)
 _TAG = "rmpl.poses3d"
 _UNITS = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}  # metres per unit
 _TRC_KEYS = (
@@ -97,6 +114,18 @@ class JointSource(IntEnum):
     INTERPOLATED = 3  #: filled in from neighbouring frames
 
 
+class ViewStatus(IntEnum):
+    """How one view's 2D relates to one tracked person in one frame, stored in
+    :attr:`Poses3D.view_status` (uint8); :mod:`rmpl.pipeline.consistency` decides it."""
+
+    ABSENT = 0  #: the person has no 3D in this frame
+    AGREES = 1  #: the view's 2D of the person lies near the 3D the other views support
+    DISAGREES = 2  #: it lies far from it: another person, or a gross detection error
+    MISSED = 3  #: no 2D of the person in the view, though its 3D projects into the image
+    OUT_OF_VIEW = 4  #: no 2D, and its 3D projects outside the image or behind the camera
+    UNCHECKED = 5  #: 2D present, but too few joints or views to compare it
+
+
 @dataclass
 class Poses3D:
     """3D poses of every frame and person.
@@ -114,6 +143,17 @@ class Poses3D:
         uncertainty: the predicted 50% error radius of each joint, metres, shape (T, P, J):
             half of the time the joint is closer than this to the truth (the temporal
             lifter's calibrated uncertainty); NaN where the point is NaN or has none; or None.
+        membership: which 2D person of each view the track used, shape (T, P, V) int: the
+            index on the people axis of the run's 2D input (``Keypoints2D.keypoints[t, v,
+            membership[t, p, v]]``), -1 where none; or None.
+        views_excluded: per view, how many of the person's 2D keypoints (confidence > 0)
+            the estimator left out of a joint it estimated (robust triangulation's view
+            exclusion, a confidence threshold), shape (T, P, V) int; or None.
+        view_status: :class:`ViewStatus` per view, shape (T, P, V), uint8; ABSENT exactly
+            where the person has no joint in the frame; or None.
+        camera_names: the V views' names, in the order of the per-view fields; or None.
+        heights: each person's estimated standing height, metres, shape (P,); NaN where
+            unknown (:func:`rmpl.anthropometry.estimate_height`); or None.
     """
 
     points: np.ndarray
@@ -125,6 +165,11 @@ class Poses3D:
     fps: float | None = None
     person_ids: np.ndarray | None = None
     uncertainty: np.ndarray | None = None
+    membership: np.ndarray | None = None
+    views_excluded: np.ndarray | None = None
+    view_status: np.ndarray | None = None
+    camera_names: tuple[str, ...] | None = None
+    heights: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pts = _floats(self.points, "points")
@@ -143,6 +188,58 @@ class Poses3D:
         self.fps = _check_fps(self.fps)
         self.person_ids = _check_ids(self.person_ids, P)
         self.uncertainty = _check_uncertainty(self.uncertainty, pts)
+        self._check_per_view(pts)
+        self.heights = _check_heights(self.heights, P)
+
+    def _check_per_view(self, pts: np.ndarray) -> None:
+        """The (T, P, V) fields share one V, the camera names too."""
+        T, P = pts.shape[:2]
+        views = set()
+        for field in ("membership", "views_excluded", "view_status"):
+            a = getattr(self, field)
+            if a is None:
+                continue
+            a = _floats(a, field)
+            if a.ndim != 3 or a.shape[:2] != (T, P):
+                raise InputError(None, field, f"shape ({T}, {P}, V) (T, P, views)", a.shape)
+            if not (np.isfinite(a).all() and (a == np.round(a)).all()):
+                raise InputError(None, field, "integers", "other values")
+            views.add(a.shape[2])
+            setattr(self, field, a)
+        if self.camera_names is not None:
+            names = self.camera_names
+            if isinstance(names, np.ndarray):
+                names = names.tolist()
+            if isinstance(names, str) or not all(isinstance(n, str) and n for n in names):
+                raise InputError(None, "camera_names", "a list of non-empty names", names)
+            if len(set(names)) != len(names):
+                raise InputError(None, "camera_names", "distinct names", list(names))
+            self.camera_names = tuple(names)
+            views.add(len(names))
+        if len(views) > 1:
+            raise InputError(
+                None, "camera_names", "one number of views V for all per-view fields", sorted(views)
+            )
+        if self.membership is not None:
+            if (self.membership < -1).any():
+                raise InputError(None, "membership", "indices >= 0, or -1 for none", "< -1")
+            self.membership = self.membership.astype(np.int64)
+        if self.views_excluded is not None:
+            if (self.views_excluded < 0).any():
+                raise InputError(None, "views_excluded", "counts >= 0", "negative")
+            self.views_excluded = self.views_excluded.astype(np.int32)
+        if self.view_status is not None:
+            s = self.view_status
+            if ((s < 0) | (s > max(ViewStatus))).any():
+                raise InputError(
+                    None, "view_status", f"ViewStatus values 0..{int(max(ViewStatus))}", "other"
+                )
+            absent = np.isnan(pts).all((-1, -2))[..., None]  # (T, P, 1)
+            if ((s == ViewStatus.ABSENT) != absent).any():
+                raise InputError(
+                    None, "view_status", "ABSENT (0) exactly where the person has no joint", "other"
+                )
+            self.view_status = s.astype(np.uint8)
 
     @property
     def num_frames(self) -> int:
@@ -195,6 +292,17 @@ def _check_flags(flags, pts: np.ndarray) -> np.ndarray | None:
 
 def _check_counts(counts, pts: np.ndarray) -> np.ndarray | None:
     return None if counts is None else _integers(counts, pts, "num_views").astype(np.int32)
+
+
+def _check_heights(heights, num_people: int) -> np.ndarray | None:
+    if heights is None:
+        return None
+    a = _floats(heights, "heights")
+    if a.shape != (num_people,):
+        raise InputError(None, "heights", f"shape ({num_people},), one per person", a.shape)
+    if np.isinf(a).any() or (a <= 0).any():
+        raise InputError(None, "heights", "heights > 0 in metres, or NaN", a.tolist())
+    return a
 
 
 def _check_ids(ids, num_people: int) -> np.ndarray:
@@ -331,7 +439,9 @@ def _file_points(poses: Poses3D, units: str, up_axis: str | None) -> np.ndarray:
 
 
 def _write_npz(poses: Poses3D, tmp: Path) -> None:
-    optional = {k: getattr(poses, k) for k in ("scores", "flags", "num_views", "uncertainty")}
+    optional = {k: getattr(poses, k) for k in _OPTIONAL}
+    if poses.camera_names is not None:
+        optional["camera_names"] = np.array(poses.camera_names)
     with open(tmp, "wb") as f:
         np.savez_compressed(
             f,
@@ -361,7 +471,21 @@ def _npz_fields(path: Path) -> dict:
         fps=_fps_from_npz(_npz_get(data, "fps", path), path),
         person_ids=_npz_get(data, "person_ids", path),
         uncertainty=data.get("uncertainty"),
+        membership=data.get("membership"),
+        views_excluded=data.get("views_excluded"),
+        view_status=data.get("view_status"),
+        camera_names=_npz_names(data, path),
+        heights=data.get("heights"),
     )
+
+
+def _npz_names(data: dict, path: Path) -> list[str] | None:
+    a = data.get("camera_names")
+    if a is None:
+        return None
+    if a.ndim != 1 or a.dtype.kind != "U":
+        raise InputError(path, "camera_names", "a list of names", a.dtype)
+    return a.tolist()
 
 
 def _json_doc(poses: Poses3D) -> dict:
@@ -383,7 +507,26 @@ def _json_doc(poses: Poses3D) -> dict:
         "flag_values": {s.name.lower(): int(s) for s in JointSource},
         "num_views": opt(poses.num_views),
         "uncertainty": None if poses.uncertainty is None else _json_floats(poses.uncertainty),
+        **_json_views(poses),
     }
+
+
+def _json_views(poses: Poses3D) -> dict:
+    """The per-view fields, heights and the derived ``suspect`` joints (only those present)."""
+    doc = {}
+    if poses.camera_names is not None:
+        doc["camera_names"] = list(poses.camera_names)
+    for key in ("membership", "views_excluded"):
+        if getattr(poses, key) is not None:
+            doc[key] = getattr(poses, key).tolist()
+    if poses.view_status is not None:
+        doc["view_status"] = poses.view_status.tolist()
+        doc["view_status_values"] = {s.name.lower(): int(s) for s in ViewStatus}
+        disagrees = (poses.view_status == ViewStatus.DISAGREES).any(-1)  # (T, P)
+        doc["suspect"] = (disagrees[..., None] & ~np.isnan(poses.points).any(-1)).tolist()
+    if poses.heights is not None:
+        doc["heights"] = _json_floats(poses.heights)
+    return doc
 
 
 def _json_fields(path: Path) -> dict:
@@ -405,6 +548,22 @@ def _json_fields(path: Path) -> dict:
     def opt(key):
         return None if doc.get(key) is None else _json_array(doc, key, shape, path)
 
+    names = doc.get("camera_names")
+    if names is not None and not isinstance(names, list):
+        raise InputError(path, "camera_names", "a list of names", type(names).__name__)
+
+    def per_view(key):  # (T, P, V), V from the camera names or the first row
+        if doc.get(key) is None:
+            return None
+        if names is not None:
+            V = len(names)
+        else:
+            try:
+                V = len(doc[key][0][0])
+            except (TypeError, IndexError, KeyError):
+                V = 0
+        return _json_array(doc, key, (*shape[:2], V), path)
+
     return dict(
         points=_json_array(doc, "points", (*shape, 3), path) * _UNITS[doc["units"]],
         scores=opt("scores"),
@@ -415,6 +574,13 @@ def _json_fields(path: Path) -> dict:
         fps=doc.get("fps"),
         person_ids=doc["person_ids"],
         uncertainty=opt("uncertainty"),
+        membership=per_view("membership"),
+        views_excluded=per_view("views_excluded"),
+        view_status=per_view("view_status"),
+        camera_names=names,
+        heights=None
+        if doc.get("heights") is None
+        else _json_array(doc, "heights", shape[1:2], path),
     )
 
 
