@@ -1,6 +1,7 @@
 """rmpl generate: config validation (always), and a tiny end-to-end generation with anny,
 the EGL renderer and MediaPipe (skipped when they or anny's cache are absent): projection
-accuracy, resume after an interrupted run, --stats, Ray."""
+accuracy, resume after an interrupted run, --stats, Ray. The same for sequences
+(``sequence_frames``), driven by a made-up motion bank so they need no motion data."""
 
 from __future__ import annotations
 
@@ -12,7 +13,19 @@ import numpy as np
 import pytest
 
 from rmpl.errors import InputError
-from rmpl.synth.generate import GenerateConfig, generate, list_shards, occlude, shard_path
+from rmpl.synth.generate import (
+    SEQUENCE_FORMAT,
+    GenerateConfig,
+    MotionBank,
+    draw_window,
+    follow_root,
+    generate,
+    list_shards,
+    load_motion_bank,
+    occlude,
+    save_motion_bank,
+    shard_path,
+)
 from tests.conftest import synth_ready
 
 # Stated accuracy: on 400x400 renders (h36m cameras scaled to fit, person ~150-250 px tall),
@@ -96,6 +109,8 @@ def test_tiny_generation_projects_onto_detections(tiny_run):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["status"] == "complete" and manifest["skeleton"] == "coco17"
     assert manifest["units"]["3d"] == "metres" and manifest["detector"] == "mediapipe"
+    # A single-frame set's manifest is the one written before sequences existed.
+    assert manifest["format"] == "rmpl.mhp.v1" and "sequence_frames" not in manifest["config"]
     from rmpl.data.mhp import load_mhp
     from rmpl.geometry.camera import project
 
@@ -206,3 +221,243 @@ def test_generate_on_local_ray(tmp_path):
         ray.shutdown()
     assert summary["shards"] == 2 and summary["views"] == 4
     assert [p.name for p in list_shards(tmp_path)] == ["shard_00000.npz", "shard_00001.npz"]
+
+
+# ------------------------------------------------------------------------------ sequences
+
+# A standing COCO-17 person, z up, facing -y, metres (legs 0.45 + 0.42 m).
+_STANDING = np.array(
+    [
+        [0.0, -0.1, 1.6], [0.03, -0.08, 1.63], [-0.03, -0.08, 1.63], [0.07, 0.0, 1.6],
+        [-0.07, 0.0, 1.6], [0.18, 0.0, 1.45], [-0.18, 0.0, 1.45], [0.3, 0.0, 1.2],
+        [-0.3, 0.0, 1.2], [0.4, 0.0, 1.0], [-0.4, 0.0, 1.0], [0.1, 0.0, 0.95],
+        [-0.1, 0.0, 0.95], [0.1, 0.0, 0.5], [-0.1, 0.0, 0.5], [0.1, 0.0, 0.08],
+        [-0.1, 0.0, 0.08],
+    ]
+)  # fmt: skip
+WALK_SPEED = 1.0  # m/s along +x
+
+
+def _walk_bank(lengths=(40, 60), subjects=("01", "03"), fps=120.0) -> MotionBank:
+    """A made-up motion bank: one segment per clip; anny's reference pose with the thighs
+    swinging +-20 degrees about x, the mocap root walking along +x at WALK_SPEED."""
+    from rmpl.geometry.camera import rodrigues
+    from rmpl.synth.retarget import DRIVEN
+
+    names = [b for b, _ in DRIVEN]
+    rot, joints = [], []
+    for n in lengths:
+        r = np.broadcast_to(np.eye(3), (n, len(DRIVEN), 3, 3)).copy()
+        swing = np.radians(20) * np.sin(2 * np.pi * np.arange(n) / fps)  # one stride a second
+        for side, sign in ((".L", 1), (".R", -1)):
+            turn = rodrigues(np.stack([sign * swing, 0 * swing, 0 * swing], -1))  # (n, 3, 3)
+            for bone in ("upperleg01", "lowerleg01", "foot"):
+                r[:, names.index(bone + side)] = turn
+        rot.append(r.astype(np.float32))
+        path = np.stack([WALK_SPEED * np.arange(n) / fps, 0 * np.arange(n), 0 * np.arange(n)], -1)
+        joints.append((_STANDING + path[:, None]).astype(np.float32))
+    length = np.array(lengths, np.int64)
+    C = len(lengths)
+    return MotionBank(
+        np.concatenate(rot),
+        np.concatenate(joints),
+        np.cumsum(length) - length,
+        length,
+        np.zeros(C, np.int64),
+        np.arange(C),
+        np.array([f"walk/{s}_01.bvh" for s in subjects]),
+        np.array(subjects),
+        np.full(C, fps),
+        np.zeros((C, len(DRIVEN), 3), np.float32),
+    )
+
+
+TINY_SEQ = {
+    "num_meshes": 2,  # sequences
+    "views": 2,
+    "shard_size": 1,
+    "camera_preset": "h36m",
+    "image_size": [320, 320],
+    "sequence_frames": 4,
+    "sequence_fps": [20, 40],
+    "subjects": ["03"],
+    "perturb_deg": 0.0,
+    "seed": 3,
+}
+
+
+@pytest.mark.parametrize(
+    "override, field",
+    [
+        ({"sequence_frames": -1}, "sequence_frames"),
+        ({"sequence_frames": 1.5}, "sequence_frames"),
+        ({"sequence_fps": [60, 10]}, "sequence_fps"),
+        ({"sequence_fps": [0, 10]}, "sequence_fps"),
+        ({"sequence_fps": [10]}, "sequence_fps"),
+        ({"sequence_fps": [10, "x"]}, "sequence_fps"),
+        ({"sequence_speed": [1.0, -2.0]}, "sequence_speed"),
+        ({"poses": "random"}, "poses"),
+        ({"occlusion_rate": 0.2}, "occlusion_rate"),
+    ],
+)
+def test_bad_sequence_config_names_the_field(tmp_path, override, field):
+    d = {"poses": "motion.npz", "sequence_frames": 8, **override}
+    with pytest.raises(InputError, match=rf"seq\.toml: field '{field}'"):
+        GenerateConfig.from_dict(d, tmp_path / "seq.toml")
+    # The same values are fine without sequences (0/1 = single meshes), except the types.
+    ok = GenerateConfig.from_dict({"sequence_frames": 1, "sequence_fps": [5, 30]})
+    assert not ok.sequences and ok.sequence_fps == (5.0, 30.0)
+
+
+def test_sequence_longer_than_the_motion_is_refused(tmp_path):
+    bank = save_motion_bank(tmp_path / "walk.npz", _walk_bank(lengths=(20, 30)))
+    cfg = GenerateConfig.from_dict({**TINY_SEQ, "poses": str(bank), "sequence_frames": 31,
+                                    "subjects": []})  # fmt: skip
+    with pytest.raises(InputError, match=r"field 'sequence_frames'.*30 frames"):
+        generate(cfg, tmp_path / "out", progress=False)
+    assert not list_shards(tmp_path / "out")
+
+
+def test_motion_bank_subjects_and_round_trip(tmp_path):
+    from rmpl.synth.generate import _prepare_motion
+
+    bank = save_motion_bank(tmp_path / "walk.npz", _walk_bank())
+    cfg = GenerateConfig.from_dict({**TINY_SEQ, "poses": str(bank)})
+    out = tmp_path / "out"
+    out.mkdir()
+    m = load_motion_bank(_prepare_motion(cfg, out))
+    assert len(m) == 1 and m.subjects[m.clip_index[0]] == "03" and m.length.tolist() == [60]
+    np.testing.assert_array_equal(m.rotations, _walk_bank().rotations[40:])
+    assert m.seconds_per_subject() == {"03": round(59 / 120, 2)}
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(InputError, match="bad.npz"):
+        load_motion_bank(tmp_path / "bad.npz")
+    np.savez(tmp_path / "other.npz", format=np.array("something"))
+    with pytest.raises(InputError, match="field 'format'"):
+        load_motion_bank(tmp_path / "other.npz")
+
+
+def test_draw_window_stays_in_one_segment():
+    bank = _walk_bank(lengths=(5, 200, 60))
+    rng = np.random.default_rng(0)
+    seen = set()
+    for _ in range(200):
+        seg, rows, fps, speed = draw_window(bank, 8, (10.0, 60.0), (0.8, 1.25), rng)
+        seen.add(seg)
+        k = np.diff(rows)
+        assert len(rows) == 8 and (k == k[0]).all() and k[0] >= 1
+        assert bank.start[seg] <= rows[0] and rows[-1] < bank.start[seg] + bank.length[seg]
+        assert fps == pytest.approx(120.0 * speed / k[0]) and 0.8 <= speed <= 1.25
+        assert 10 * 0.75 <= fps <= 60 * 1.5  # rounded to whole steps of source frames
+    assert seen == {1, 2}  # the 5-frame segment is too short for 8 frames
+    # A rate that divides the source rate is exact; a segment too short for the step
+    # takes the longest step it holds (59 // 7 = 8 source frames: 15 frames/s).
+    _, rows, fps, _ = draw_window(bank, 8, (30.0, 30.0), (1.0, 1.0), rng)
+    assert fps == 30.0 and (np.diff(rows) == 4).all()
+    short = _walk_bank(lengths=(60,))
+    _, rows, fps, _ = draw_window(short, 8, (10.0, 10.0), (1.0, 1.0), rng)
+    assert fps == 15.0 and (np.diff(rows) == 8).all()
+
+
+def test_follow_root_moves_along_the_mocap_path():
+    T = 5
+    joints = np.repeat(_STANDING[None], T, 0) * 1.1  # a taller body, standing still
+    verts = joints.copy()  # its "vertices": enough for the floor
+    mocap = (
+        _STANDING
+        + np.stack([0.1 * np.arange(T), 0 * np.arange(T), 0.05 * np.arange(T)], -1)[:, None]
+    )
+    v, k = follow_root(verts, joints, mocap, np.pi / 2, np.array([1.0, 2.0]))
+    hip = k[:, 11:13].mean(1)
+    step = np.diff(hip, axis=0)
+    # Scaled by the leg-length ratio (1.1), x turned onto +y, jump kept, lowest point on z = 0.
+    np.testing.assert_allclose(step, np.tile([0.0, 0.11, 0.055], (T - 1, 1)), atol=1e-5)
+    np.testing.assert_allclose(hip[:, :2].mean(0), [1.0, 2.0], atol=1e-5)
+    assert v[..., 2].min() == pytest.approx(0.0, abs=1e-6) and v[0, :, 2].min() < 1e-6
+
+
+@pytest.fixture(scope="module")
+def tiny_seq_run(tmp_path_factory):
+    _needs_synth()
+    root = tmp_path_factory.mktemp("mhpseq")
+    bank = save_motion_bank(root / "walk.npz", _walk_bank())
+    cfg = GenerateConfig.from_dict({**TINY_SEQ, "poses": str(bank)})
+    summary = generate(cfg, root / "run", progress=False)
+    return root / "run", cfg, summary
+
+
+def test_tiny_sequences(tiny_seq_run):
+    from rmpl.data.mhp import load_mhp_sequences
+    from rmpl.geometry.camera import project
+
+    out, cfg, summary = tiny_seq_run
+    assert summary["shards"] == 2 and summary["sequences"] == 2 and summary["views"] == 16
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["format"] == SEQUENCE_FORMAT and manifest["status"] == "complete"
+    assert manifest["sequences"]["frames"] == 4 and manifest["config"]["sequence_frames"] == 4
+    assert manifest["motion"]["seconds_per_subject"] == {"03": round(59 / 120, 2)}
+    d = load_mhp_sequences(out)
+    S, T, V = 2, 4, 2
+    assert d["joints3d"].shape == (S, T, 17, 3) and d["keypoints"].shape == (S, T, V, 17, 2)
+    assert d["scores"].shape == (S, T, V, 17) and d["times"].shape == (S, T)
+    assert d["K"].shape == (S, V, 3, 3) and d["t"].shape == (S, V, 3)
+    assert d["frame"].shape == (S, T) and set(d["subject"]) == {"03"}
+    # Times: regular at the sequence's rate, a whole step of 120 fps source frames.
+    k = np.diff(d["frame"], axis=1)
+    assert (k == k[:, :1]).all() and (k >= 1).all()
+    np.testing.assert_allclose(d["fps"], 120.0 / k[:, 0])
+    np.testing.assert_allclose(d["times"], np.arange(T) / d["fps"][:, None])
+    assert ((20 / 1.5 <= d["fps"]) & (d["fps"] <= 40 * 1.5)).all()
+    # One rig per sequence: the stored cameras reproduce every frame's projections.
+    uv = project(
+        d["joints3d"][:, :, None].astype(float),
+        d["K"][:, None, :, None],
+        d["R"][:, None, :, None],
+        d["t"][:, None, :, None],
+    )
+    np.testing.assert_allclose(uv, d["projected"], atol=1e-2)
+    # One body per sequence: its bone lengths hold over the frames.
+    legs = np.linalg.norm(
+        d["joints3d"][:, :, [11, 12, 13, 14]] - d["joints3d"][:, :, [13, 14, 15, 16]], axis=-1
+    )
+    assert np.ptp(legs, axis=1).max() < 0.01, np.ptp(legs, axis=1)
+    # The body walks: its mid-hip moves the same distance every frame, at a walking speed
+    # (the mocap's 1 m/s scaled by the leg-length ratio), and stands on the floor.
+    hip = d["joints3d"][:, :, 11:13].mean(2)
+    speed = np.linalg.norm(np.diff(hip, axis=1), axis=-1) * d["fps"][:, None]
+    assert np.ptp(speed, axis=1).max() < 1e-3 * speed.mean() and 0.6 < speed.mean() < 1.5
+    assert 0 < d["joints3d"][..., 2].min() < 0.2
+    # The detector found the person: confident keypoints land near the projections.
+    ok = d["scores"] > 0.5
+    err = np.linalg.norm(d["keypoints"] - uv, axis=-1)[ok]
+    assert ok.sum() >= 100 and np.median(err) < MEDIAN_PX, np.median(err)
+
+
+def test_sequence_resume_regenerates_only_the_killed_shard(tiny_seq_run, tmp_path):
+    src, cfg, _ = tiny_seq_run
+    out = tmp_path / "run"
+    shutil.copytree(src, out)
+    before = {p.name: p.stat().st_mtime_ns for p in list_shards(out)}
+    with np.load(shard_path(out, 1)) as z:
+        original = {k: z[k].copy() for k in ("joints3d", "K", "R", "t", "times", "frame")}
+    shard_path(out, 1).unlink()  # killed while writing shard 1
+    (out / ".shard_00001.npz.abc123.part.npz").write_bytes(b"partial")
+    summary = generate(cfg, out, progress=False)
+    assert summary["this_run"]["views"] == 8 and summary["shards"] == 2
+    after = {p.name: p.stat().st_mtime_ns for p in list_shards(out)}
+    assert after["shard_00000.npz"] == before["shard_00000.npz"]
+    with np.load(shard_path(out, 1)) as z:
+        for k, v in original.items():
+            np.testing.assert_array_equal(z[k], v, err_msg=k)  # seeded by (seed, sequence)
+    with pytest.raises(InputError, match="field 'sequence_frames'"):
+        generate(dataclasses.replace(cfg, sequence_frames=5), out, progress=False)
+    with pytest.raises(InputError, match="field 'sequence_frames'"):  # nor as single frames
+        generate(dataclasses.replace(cfg, sequence_frames=0, poses="random"), out, progress=False)
+
+
+def test_stats_refuses_a_sequence_set(tiny_seq_run, capsys):
+    from rmpl.cli import main
+
+    out, _, _ = tiny_seq_run
+    assert main(["generate", "--stats", str(out)]) == 2
+    assert "single-frame" in capsys.readouterr().err

@@ -3,6 +3,8 @@
 Examples:
   rmpl generate configs/mhp.toml --out /data/mhp --set poses="PATH/TO/cmu_mocap" --workers 2
   rmpl generate configs/mhp.toml --out /data/mhp --ray auto      (shards as Ray tasks)
+  rmpl generate configs/mhp_seq.toml --out /data/mhp_seq --set poses="PATH/TO/cmu_mocap"
+                                          (sequences: one body, motion and rig per sequence)
   rmpl generate --stats /data/mhp [--noise-out noise.toml]       (detector error report)
 
 Re-running the same command resumes: finished shards are skipped.
@@ -53,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
     if args.stats:
         from rmpl.synth.noise_fit import detector_stats, write_noise
 
+        _refuse_sequences(args.stats)
         report = detector_stats(args.stats)
         print(report.markdown())
         path = write_noise(report, args.noise_out or f"{args.stats}/noise.toml")
@@ -69,3 +72,18 @@ def run(args: argparse.Namespace) -> int:
         cfg, args.out, workers=args.workers, ray_address=args.ray, progress=not args.no_progress
     )
     return 0
+
+
+def _refuse_sequences(root: str) -> None:
+    """--stats fits the per-image noise model: it reads single-frame sets only."""
+    import json
+    from pathlib import Path
+
+    from rmpl.errors import InputError
+    from rmpl.synth.generate import SEQUENCE_FORMAT
+
+    manifest = Path(root) / "manifest.json"
+    if manifest.is_file():
+        fmt = json.loads(manifest.read_text()).get("format")
+        if fmt == SEQUENCE_FORMAT:
+            raise InputError(manifest, "format", "a single-frame MHP set for --stats", fmt)

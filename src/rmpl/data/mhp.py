@@ -6,7 +6,14 @@ trainer saves), so the trainer reads rendered, really-detected pairs the same wa
 the fast parametric ones. :class:`MixSource` draws each batch from one of several sources.
 :func:`load_mhp` returns the raw arrays for evaluation.
 
-Shape glossary: ``B`` batch, ``M`` meshes, ``V`` views, ``J`` joints (17).
+MHP *sequence* sets (``sequence_frames >= 2``): :func:`load_mhp_sequences` returns their
+arrays, and :class:`SequenceShardSource` has the interface of
+:class:`rmpl.data.sequences.SequenceSource` (``.batch(size, frames, V, train=True) ->
+SequenceBatch``, ``.rng``), so the temporal trainer can read rendered, really-detected
+windows as it reads the parametric ones.
+
+Shape glossary: ``B`` batch, ``M`` meshes, ``S`` sequences, ``T`` frames, ``V`` views,
+``J`` joints (17).
 """
 
 from __future__ import annotations
@@ -17,13 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.data.sequences import SequenceBatch
 from rmpl.data.synthetic import Batch
 from rmpl.errors import InputError
 from rmpl.geometry.camera import rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.skeleton import COCO17
 
-__all__ = ["load_mhp", "ShardSource", "MixSource"]
+__all__ = ["load_mhp", "load_mhp_sequences", "ShardSource", "SequenceShardSource", "MixSource"]
 
 _ARRAYS = ("joints3d", "keypoints", "scores", "K", "R", "t", "size", "subject", "clip", "frame")
 
@@ -49,15 +57,28 @@ def load_mhp(
     Raises:
         InputError: not an MHP directory, another joint set, or nothing selected.
     """
-    from rmpl.synth.generate import FORMAT, list_shards
+    from rmpl.synth.generate import FORMAT
+
+    return _load(root, FORMAT, (*_ARRAYS, "projected"), ("projected",), subjects,
+                 exclude_subjects, "meshes")  # fmt: skip
+
+
+def _load(root, fmt: str, keys, optional, subjects, exclude_subjects, what: str) -> dict:
+    """The arrays ``keys`` of every finished shard of ``root`` (manifest format ``fmt``),
+    concatenated, the subject selection applied, keypoints NaN where the score is 0."""
+    from rmpl.synth.generate import FORMAT, SEQUENCE_FORMAT, list_shards
 
     root = Path(root)
     manifest = root / "manifest.json"
     if not manifest.is_file():
         raise InputError(root, "manifest.json", "an MHP directory made by rmpl generate", "none")
     meta = json.loads(manifest.read_text())
-    if meta.get("format") != FORMAT:
-        raise InputError(manifest, "format", repr(FORMAT), meta.get("format"))
+    if meta.get("format") != fmt:
+        hint = {
+            FORMAT: " (a single-frame set: read it with load_mhp)",
+            SEQUENCE_FORMAT: " (a sequence set: read it with load_mhp_sequences)",
+        }.get(meta.get("format"), "")
+        raise InputError(manifest, "format", repr(fmt), f"{meta.get('format')!r}{hint}")
     if meta.get("joints") != list(COCO17.joints):
         raise InputError(manifest, "joints", "COCO-17", meta.get("joints"))
     shards = list_shards(root)
@@ -66,10 +87,10 @@ def load_mhp(
     parts: dict[str, list] = {}
     for p in shards:
         with np.load(p, allow_pickle=False) as z:
-            for k in (*_ARRAYS, "projected"):
+            for k in keys:
                 if k in z.files:
                     parts.setdefault(k, []).append(z[k])
-                elif k != "projected":
+                elif k not in optional:
                     raise InputError(p, k, "the array", "missing")
     d = {k: np.concatenate(v) for k, v in parts.items()}
     keep = np.ones(len(d["joints3d"]), bool)
@@ -80,13 +101,62 @@ def load_mhp(
         raise InputError(
             root,
             "subject",
-            f"meshes of subjects {subjects} not in {list(exclude_subjects)}",
+            f"{what} of subjects {subjects} not in {list(exclude_subjects)}",
             sorted(set(d["subject"].tolist())),
         )
     d = {k: v[keep] for k, v in d.items()}
     missed = d["scores"] <= 0
     d["keypoints"] = np.where(missed[..., None], np.nan, d["keypoints"]).astype(np.float32)
     return d
+
+
+_SEQUENCE_KEYS = (
+    "joints3d",
+    "keypoints",
+    "scores",
+    "projected",
+    "times",
+    "fps",
+    "K",
+    "R",
+    "t",
+    "size",
+    "phenotypes",
+    "subject",
+    "clip",
+    "frame",
+    "mirrored",
+)
+
+
+def load_mhp_sequences(
+    root: str | Path,
+    subjects: Sequence[str] | None = None,
+    exclude_subjects: Sequence[str] = (),
+) -> dict[str, np.ndarray]:
+    """Read an MHP sequence directory (``rmpl generate`` with ``sequence_frames >= 2``).
+
+    Args:
+        root: the directory (``manifest.json`` of format ``rmpl.mhp.sequences.v1`` + shards).
+        subjects: keep only sequences of these motion subjects (None = all).
+        exclude_subjects: drop sequences of these subjects.
+
+    Returns:
+        ``joints3d`` (S, T, 17, 3) metres; ``keypoints`` (S, T, V, 17, 2) pixels, NaN where
+        the score is 0; ``scores`` (S, T, V, 17); ``projected`` (S, T, V, 17, 2) pixels;
+        ``times`` (S, T) seconds; ``fps`` (S,); one rig per sequence: ``K`` (S, V, 3, 3),
+        ``R`` (S, V, 3, 3), ``t`` (S, V, 3) metres, ``size`` (S, V, 2) pixels;
+        ``phenotypes`` (S, 6); ``subject``, ``clip``, ``mirrored`` (S,); ``frame`` (S, T)
+        source frames.
+
+    Raises:
+        InputError: not a sequence directory, another joint set, a missing array, or
+            nothing selected.
+    """
+    from rmpl.synth.generate import SEQUENCE_FORMAT
+
+    return _load(root, SEQUENCE_FORMAT, _SEQUENCE_KEYS, (), subjects, exclude_subjects,
+                 "sequences")  # fmt: skip
 
 
 def _pad_views(part: dict[str, np.ndarray], key: str, width: int) -> np.ndarray:
@@ -225,3 +295,112 @@ class MixSource:
     def batch(self, size: int, num_views: int, train: bool = True) -> Batch:
         k = int(self.rng.choice(len(self.sources), p=self.weights))
         return self.sources[k].batch(size, num_views, train)
+
+
+class SequenceShardSource:
+    """Training windows from MHP sequence shards: each sample is a window of consecutive
+    frames of one sequence, seen by ``V`` of its views (one rig for the window).
+
+    The batches are :class:`rmpl.data.sequences.SequenceBatch`, as
+    :class:`rmpl.data.sequences.SequenceSource` makes them, so the temporal trainer can read
+    either.
+
+    Args:
+        root: MHP sequence directory, or several with the same frames and views per sequence.
+        subjects, exclude_subjects: sequence selection by motion subject.
+        drop_rate: random keypoint removal on training batches.
+        augment: on training batches, turn each window about the vertical by a random angle
+            and move it up to ``shift`` metres on the floor (joints and cameras together, so
+            the 2D keypoints stay exact), and start its clock at a random time (0-100 s).
+        shift: see ``augment``, metres.
+        seed: random seed.
+    """
+
+    def __init__(
+        self,
+        root: str | Path | Sequence[str | Path],
+        subjects: Sequence[str] | None = None,
+        exclude_subjects: Sequence[str] = (),
+        drop_rate: float = 0.0,
+        augment: bool = True,
+        shift: float = 1.0,
+        seed: int | None = None,
+    ) -> None:
+        roots = [root] if isinstance(root, str | Path) else list(root)
+        parts = [load_mhp_sequences(r, subjects, exclude_subjects) for r in roots]
+        shape = parts[0]["scores"].shape[1:3]  # (T, V)
+        for r, p in zip(roots, parts, strict=True):
+            if p["scores"].shape[1:3] != shape:
+                raise InputError(
+                    r,
+                    "sequence_frames, views",
+                    f"{shape[0]} frames and {shape[1]} views per sequence like {roots[0]}",
+                    f"{p['scores'].shape[1]} frames, {p['scores'].shape[2]} views",
+                )
+        if not 0 <= drop_rate < 1:
+            raise ValueError(f"drop_rate must be in [0, 1), got {drop_rate}")
+        keys = ("joints3d", "keypoints", "scores", "times", "K", "R", "t")
+        self.data = {k: np.concatenate([p[k] for p in parts]) for k in keys}
+        self.drop_rate = float(drop_rate)
+        self.augment = augment
+        self.shift = float(shift)
+        self.rng = np.random.default_rng(seed)
+
+    @property
+    def num_sequences(self) -> int:
+        return len(self.data["joints3d"])
+
+    @property
+    def num_frames(self) -> int:
+        """Frames per stored sequence: the longest window a batch can ask for."""
+        return self.data["scores"].shape[1]
+
+    @property
+    def num_views(self) -> int:
+        """Views per stored sequence: the most a batch can ask for."""
+        return self.data["scores"].shape[2]
+
+    def batch(self, size: int, frames: int, num_views: int, train: bool = True) -> SequenceBatch:
+        """``size`` windows of ``frames`` consecutive frames, each from a random sequence and
+        start, seen by ``num_views`` of its views drawn without repeats."""
+        if not 1 <= frames <= self.num_frames:
+            raise ValueError(f"frames must be in [1, {self.num_frames}], got {frames}")
+        if not 1 <= num_views <= self.num_views:
+            raise ValueError(f"num_views must be in [1, {self.num_views}], got {num_views}")
+        rng, d, B, T = self.rng, self.data, size, frames
+        seq = rng.integers(0, self.num_sequences, B)
+        start = rng.integers(0, self.num_frames - T + 1, B)
+        rows = start[:, None] + np.arange(T)  # (B, T)
+        views = np.argsort(rng.random((B, self.num_views)), axis=1)[:, :num_views]  # (B, V)
+        at = (seq[:, None, None], rows[:, :, None], views[:, None, :])  # (B, T, V) index
+        kp = d["keypoints"][at].astype(np.float64)  # (B, T, V, J, 2)
+        scores = d["scores"][at].astype(np.float64)
+        rig = (seq[:, None], views)
+        K, R, t = d["K"][rig], d["R"][rig].copy(), d["t"][rig].copy()
+        target = d["joints3d"][seq[:, None], rows].astype(np.float64)  # (B, T, J, 3)
+        times = d["times"][seq[:, None], rows]
+        times = times - times[:, :1]
+        if train and self.augment:
+            yaw = rng.uniform(-np.pi, np.pi, B)
+            Rz = rodrigues(np.stack([np.zeros(B), np.zeros(B), yaw], -1))  # (B, 3, 3)
+            c = np.concatenate([rng.uniform(-self.shift, self.shift, (B, 2)), np.zeros((B, 1))], -1)
+            target = np.einsum("bij,btnj->btni", Rz, target) + c[:, None, None]
+            # x_cam = R X + t = R Rz^T (X' - c) + t
+            R = R @ np.swapaxes(Rz, -1, -2)[:, None]
+            t = t - np.einsum("bvij,bj->bvi", R, c)
+            times = times + rng.uniform(0, 100, (B, 1))
+        if train and self.drop_rate > 0:
+            scores = np.where(rng.random(scores.shape) < self.drop_rate, 0.0, scores)
+        kp = np.where(scores[..., None] > 0, kp, np.nan)
+        rays = rays_from_keypoints(kp, K=K[:, None], R=R[:, None], t=t[:, None])
+        rays = np.where(scores[..., None] > 0, rays, 0.0)
+        return SequenceBatch(
+            rays.astype(np.float32),
+            scores.astype(np.float32),
+            times.astype(np.float32),
+            target.astype(np.float32),
+            kp,
+            K,
+            R,
+            t,
+        )

@@ -16,7 +16,21 @@ Output directory::
 
 Each shard is seeded by ``(seed, shard index)`` and written atomically, so a killed run
 loses at most the shards in progress and running the same command again skips the
-finished shards. Shape glossary: ``M`` meshes, ``V`` views, ``J`` joints (17).
+finished shards.
+
+**Sequences** (``sequence_frames >= 2``): each sample is ``T = sequence_frames`` consecutive
+frames of one motion segment (its source frames every ``k``-th, ``k`` chosen so the frame
+rate falls near one drawn log-uniformly in ``sequence_fps``, the playback speed drawn in
+``sequence_speed``), played by one body (one phenotype, outfit, lighting, mirroring and
+bone perturbation), moving through the room as the mocap root moved, and seen by one rig
+(each camera keeps its background). Every frame is rendered and detected: the detector runs
+on every image afresh (MediaPipe in static-image mode), as ``rmpl run --videos`` runs it.
+The motion is read into ``motion.npz`` (:class:`MotionBank`) instead of ``poses.npz``, the
+manifest's format is :data:`SEQUENCE_FORMAT` and the shards hold
+:data:`SEQUENCE_ARRAYS`; ``num_meshes`` and ``shard_size`` count sequences, and each
+sequence ``i`` is seeded by ``(seed, i, 2)``.
+
+Shape glossary: ``M`` meshes, ``S`` sequences, ``T`` frames, ``V`` views, ``J`` joints (17).
 """
 
 from __future__ import annotations
@@ -38,6 +52,11 @@ from rmpl.skeleton import COCO17
 __all__ = [
     "GenerateConfig",
     "SHARD_ARRAYS",
+    "SEQUENCE_ARRAYS",
+    "MotionBank",
+    "build_motion_bank",
+    "load_motion_bank",
+    "save_motion_bank",
     "generate",
     "generate_shard",
     "shard_path",
@@ -48,6 +67,12 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FORMAT = "rmpl.mhp.v1"
+#: The manifest format of a sequence set (``sequence_frames >= 2``).
+SEQUENCE_FORMAT = "rmpl.mhp.sequences.v1"
+_MOTION_FORMAT = "rmpl.mhp.motion.v1"
+#: Config keys that only sequence sets have (left out of a single-frame set's manifest,
+#: which stays as it was before sequences existed).
+_SEQUENCE_KEYS = ("sequence_frames", "sequence_fps", "sequence_speed")
 
 #: Arrays of a shard: name -> (shape, meaning).
 SHARD_ARRAYS: dict[str, tuple[str, str]] = {
@@ -65,6 +90,26 @@ SHARD_ARRAYS: dict[str, tuple[str, str]] = {
     "clip": ("(M,) str", "source clip (path under the motion folder)"),
     "frame": ("(M,) int64", "source frame in the clip (-1 for random poses)"),
     "mirrored": ("(M,) bool", "the pose was mirrored left/right"),
+}
+
+#: Arrays of a sequence shard: name -> (shape, meaning).
+SEQUENCE_ARRAYS: dict[str, tuple[str, str]] = {
+    "joints3d": ("(S, T, 17, 3) float32", "COCO-17 joints regressed from the mesh, world metres"),
+    "keypoints": ("(S, T, V, 17, 2) float32", "detector keypoints, pixels, NaN = missed"),
+    "scores": ("(S, T, V, 17) float32", "detector confidence in [0, 1], 0 = missed or outside"),
+    "projected": ("(S, T, V, 17, 2) float32", "joints3d projected into each view, pixels"),
+    "times": ("(S, T) float64", "time of each frame, seconds from the sequence's first"),
+    "fps": ("(S,) float64", "frames per second of the sequence"),
+    "speed": ("(S,) float64", "motion seconds per second of the sequence (1 = real time)"),
+    "K": ("(S, V, 3, 3) float64", "intrinsics, pixels (one rig per sequence)"),
+    "R": ("(S, V, 3, 3) float64", "world-to-camera rotation"),
+    "t": ("(S, V, 3) float64", "world-to-camera translation, metres"),
+    "size": ("(S, V, 2) int32", "image (width, height), pixels"),
+    "phenotypes": ("(S, 6) float32", "anny phenotypes (rmpl.synth.body.PHENOTYPES order)"),
+    "subject": ("(S,) str", "source subject id"),
+    "clip": ("(S,) str", "source clip (path under the motion folder)"),
+    "frame": ("(S, T) int64", "source frame of each frame in the clip"),
+    "mirrored": ("(S,) bool", "the motion was mirrored left/right"),
 }
 
 
@@ -98,7 +143,13 @@ class GenerateConfig:
         occlusion_rate: probability that a black square covers a joint before detection
             (thesis 6.11.1); 0 = off.
         occlusion_size: side of the black squares, pixels.
-        max_tries: implausible poses are replaced; give up after this many draws per mesh.
+        max_tries: implausible poses are replaced; give up after this many draws per mesh
+            (per sequence with ``sequence_frames``).
+        sequence_frames: frames per sequence, T; 0 or 1 = single meshes (see the module
+            docstring). ``num_meshes`` and ``shard_size`` then count sequences.
+        sequence_fps: ``[low, high]`` frames per second, drawn log-uniformly per sequence and
+            rounded to a whole step of source frames (CMU: 120 / k).
+        sequence_speed: ``[low, high]`` playback speed, uniform per sequence (1 = real time).
     """
 
     poses: str = "random"
@@ -121,6 +172,9 @@ class GenerateConfig:
     occlusion_rate: float = 0.0
     occlusion_size: int = 50
     max_tries: int = 10
+    sequence_frames: int = 0
+    sequence_fps: tuple[float, ...] = (10.0, 60.0)
+    sequence_speed: tuple[float, ...] = (1.0, 1.0)
 
     @classmethod
     def from_dict(cls, d: dict, path: str | Path | None = None) -> GenerateConfig:
@@ -142,6 +196,9 @@ class GenerateConfig:
                 raise InputError(path, key, f"a {want.__name__}", repr(value))
             if want is float:
                 d[key] = float(value)
+        for key in ("sequence_fps", "sequence_speed"):
+            if key in d and all(isinstance(v, int | float) for v in d[key]):
+                d[key] = tuple(float(v) for v in d[key])
         cfg = cls(**d)
         checks = [
             ("num_meshes", cfg.num_meshes >= 1, ">= 1"),
@@ -170,10 +227,16 @@ class GenerateConfig:
             ("max_tries", cfg.max_tries >= 1, ">= 1"),
             ("poses", bool(cfg.poses), "a motion folder, a pose bank .npz or 'random'"),
         ]
+        checks += _sequence_checks(cfg)
         for name, ok, expected in checks:
             if not ok:
                 raise InputError(path, name, expected, repr(getattr(cfg, name)))
         return cfg
+
+    @property
+    def sequences(self) -> bool:
+        """Whether this config makes sequences (``sequence_frames >= 2``)."""
+        return self.sequence_frames >= 2
 
     @classmethod
     def from_toml(cls, path: str | Path, overrides: list[str] | None = None) -> GenerateConfig:
@@ -199,6 +262,50 @@ class GenerateConfig:
         return -(-self.num_meshes // self.shard_size)
 
 
+def _is_range(value: tuple) -> bool:
+    """A ``(low, high)`` pair of positive numbers with low <= high."""
+    return (
+        len(value) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        and 0 < value[0] <= value[1] < float("inf")
+    )
+
+
+def _sequence_checks(cfg: GenerateConfig) -> list[tuple[str, bool, str]]:
+    """(field, ok, expected) of the sequence options."""
+    seq = cfg.sequences
+    return [
+        ("sequence_frames", cfg.sequence_frames >= 0, ">= 0 (0 or 1 = single meshes)"),
+        ("sequence_fps", _is_range(cfg.sequence_fps), "[low, high] frames/s, 0 < low <= high"),
+        ("sequence_speed", _is_range(cfg.sequence_speed), "[low, high] speeds, 0 < low <= high"),
+        (
+            "poses",
+            not seq or cfg.poses != "random",
+            "a motion folder or a motion.npz (sequences need real motion, not 'random')",
+        ),
+        (
+            "occlusion_rate",
+            not seq or cfg.occlusion_rate == 0,
+            "0 with sequence_frames >= 2 (squares are drawn per image, not per sequence)",
+        ),
+    ]
+
+
+def _config_dict(cfg: GenerateConfig) -> dict:
+    """The config as the manifest stores it: a single-mesh config without the sequence keys,
+    so its manifest is the one written before sequences existed."""
+    d = asdict(cfg)
+    if not cfg.sequences:
+        for key in _SEQUENCE_KEYS:
+            d.pop(key)
+    return d
+
+
+def shard_arrays(cfg: GenerateConfig) -> dict[str, tuple[str, str]]:
+    """The arrays of this config's shards: :data:`SEQUENCE_ARRAYS` or :data:`SHARD_ARRAYS`."""
+    return SEQUENCE_ARRAYS if cfg.sequences else SHARD_ARRAYS
+
+
 def shard_path(out: str | Path, index: int) -> Path:
     return Path(out) / f"shard_{index:05d}.npz"
 
@@ -208,13 +315,14 @@ def list_shards(out: str | Path) -> list[Path]:
     return sorted(p for p in Path(out).glob("shard_*.npz") if not p.name.startswith("."))
 
 
-def _shard_ok(path: Path, meshes: int) -> bool:
-    """Whether ``path`` is a finished shard of ``meshes`` meshes."""
+def _shard_ok(path: Path, meshes: int, arrays: dict = SHARD_ARRAYS) -> bool:
+    """Whether ``path`` is a finished shard of ``meshes`` meshes (or sequences) with
+    ``arrays``."""
     if not path.is_file():
         return False
     try:
         with np.load(path, allow_pickle=False) as z:
-            return set(SHARD_ARRAYS) <= set(z.files) and len(z["joints3d"]) == meshes
+            return set(arrays) <= set(z.files) and len(z["joints3d"]) == meshes
     except (OSError, ValueError, EOFError):
         return False
 
@@ -260,7 +368,13 @@ class Worker:
         self.body = BodyModel(cache_dir=cache_dir or os.environ.get("ANNY_CACHE_DIR"))
         self.renderer = Renderer(self.body.faces, self.body.num_vertices)
         self.detector = make_detector(cfg.detector)
-        self.bank = load_pose_bank(bank_path) if bank_path else None
+        # Single meshes read a PoseBank (poses.npz); sequences a MotionBank (motion.npz).
+        self.bank = None
+        self.motion: MotionBank | None = None
+        if bank_path and cfg.sequences:
+            self.motion = load_motion_bank(bank_path)
+        elif bank_path:
+            self.bank = load_pose_bank(bank_path)
 
     def close(self) -> None:
         self.renderer.close()
@@ -365,6 +479,8 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     n = _shard_meshes(cfg, index)
     if n <= 0:
         raise ValueError(f"shard {index} is beyond num_meshes={cfg.num_meshes}")
+    if cfg.sequences:
+        return _sequence_shard(worker, index, first, n, out)
     rng = np.random.default_rng([cfg.seed, index])
     # The squares draw from their own stream: a set made with occlusion_rate > 0 has the
     # same meshes, cameras and images as the one made without (a paired experiment).
@@ -397,10 +513,14 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
         "missed_views": int((arrays["scores"] == 0).all(-1).sum()),
         "seconds": times,
     }
-    path = shard_path(out, index)
+    _write_shard(shard_path(out, index), arrays, stats)
+    return stats
+
+
+def _write_shard(path: Path, arrays: dict[str, np.ndarray], stats: dict) -> None:
+    """One compressed NPZ, written atomically (a killed run leaves no partial shard)."""
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, **arrays, stats=np.array(json.dumps(stats)))
-    return stats
 
 
 @dataclass
@@ -475,6 +595,407 @@ def _batch_arrays(posed: _Posed, kp2d, scores, occ: np.ndarray) -> dict[str, np.
     }
 
 
+# ------------------------------------------------------------------------------ sequences
+
+
+@dataclass(frozen=True, eq=False)
+class MotionBank:
+    """Continuous mocap segments ready to retarget onto anny, at their source frame rate.
+
+    Attributes:
+        rotations: driver rotations of every frame, segments back to back, shape
+            (N, K, 3, 3) float32 (see :func:`rmpl.synth.retarget.mocap_drivers`).
+        joints: the mocap's own COCO-17 joints, metres, z up, shape (N, 17, 3) float32 (for
+            the root's path and the leg length).
+        start, length: first row and frames of each segment, shape (G,) int64.
+        first: each segment's first frame in its clip, shape (G,) int64.
+        clip_index: each segment's clip, shape (G,) int64, into the per-clip arrays:
+        clips, subjects: clip path and subject id, shape (C,) str.
+        fps: source frames per second, shape (C,) float64.
+        rest_dirs: driver rest directions, shape (C, K, 3) float32.
+    """
+
+    rotations: np.ndarray
+    joints: np.ndarray
+    start: np.ndarray
+    length: np.ndarray
+    first: np.ndarray
+    clip_index: np.ndarray
+    clips: np.ndarray
+    subjects: np.ndarray
+    fps: np.ndarray
+    rest_dirs: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    def seconds_per_subject(self) -> dict[str, float]:
+        """Seconds of motion per subject."""
+        secs = (self.length - 1) / self.fps[self.clip_index]
+        subj = self.subjects[self.clip_index]
+        return {str(s): round(float(secs[subj == s].sum()), 2) for s in np.unique(subj)}
+
+    def select(self, keep: np.ndarray) -> MotionBank:
+        """The segments where ``keep`` (bool, shape (G,)) is True."""
+        length = self.length[keep]
+        rows = [np.arange(a, a + n) for a, n in zip(self.start[keep], length, strict=True)]
+        rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
+        return MotionBank(
+            self.rotations[rows],
+            self.joints[rows],
+            (np.cumsum(length) - length).astype(np.int64),
+            length,
+            self.first[keep],
+            self.clip_index[keep],
+            self.clips,
+            self.subjects,
+            self.fps,
+            self.rest_dirs,
+        )
+
+
+def _segments(keep: np.ndarray, joints: np.ndarray, fps: float) -> list[tuple[int, int]]:
+    """(first, stop) frame ranges of the clean stretches of a clip: ``keep`` frames (T,)
+    cut wherever a joint moves faster than :data:`rmpl.data.sequences.MAX_JOINT_SPEED`
+    between two frames (capture glitches). joints: (T, 17, 3) metres."""
+    from rmpl.data.sequences import MAX_JOINT_SPEED
+
+    speed = np.linalg.norm(np.diff(joints, axis=0), axis=-1).max(-1) * fps  # (T - 1,)
+    edges = np.flatnonzero(np.diff(np.r_[0, keep.astype(np.int8), 0]))
+    out = []
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        cuts = a + 1 + np.flatnonzero(speed[a : b - 1] > MAX_JOINT_SPEED)
+        bounds = np.r_[a, cuts, b]
+        pieces = zip(bounds[:-1], bounds[1:], strict=True)
+        out += [(int(x), int(y)) for x, y in pieces if y - x >= 2]
+    return out
+
+
+def build_motion_bank(
+    root: str | Path, subjects: list[str] | None = None, exclude_subjects: tuple[str, ...] = ()
+) -> MotionBank:
+    """Every clean stretch of motion under ``root`` (ASF/AMC, BVH) at its own frame rate.
+
+    Args:
+        root: folder of motion files. subjects: keep only these subject ids (None = all).
+        exclude_subjects: drop these subject ids.
+
+    Raises:
+        InputError: no clip of the selected subjects, or none with clean motion.
+    """
+    from rmpl.synth.motion import BROKEN_CLIPS, find_clips, to_coco17, usable_frames
+    from rmpl.synth.motion.bank import _load_clip, _matches
+    from rmpl.synth.retarget import mocap_drivers
+
+    clips = [
+        c
+        for c in find_clips(root, subjects)
+        if c.subject not in set(exclude_subjects) and not _matches(c.clip, BROKEN_CLIPS)
+    ]
+    if not clips:
+        raise InputError(root, "poses", "motion clips of the selected subjects", "none")
+    rot, joints, first, clip_index, names, subj, fps, dirs = [], [], [], [], [], [], [], []
+    skeletons: dict = {}
+    for c in clips:
+        motion = _load_clip(c, skeletons)
+        coco = to_coco17(motion)
+        segs = _segments(usable_frames(motion), coco, motion.fps)
+        if not segs:
+            continue
+        r, d = mocap_drivers(motion)
+        for a, b in segs:
+            rot.append(r[a:b].astype(np.float32))
+            joints.append(coco[a:b].astype(np.float32))
+            first.append(a)
+            clip_index.append(len(names))
+        names.append(c.clip)
+        subj.append(c.subject)
+        fps.append(float(motion.fps))
+        dirs.append(d.astype(np.float32))
+    if not rot:
+        raise InputError(root, "poses", "clips with clean motion", "none")
+    length = np.array([len(r) for r in rot], np.int64)
+    bank = MotionBank(
+        np.concatenate(rot),
+        np.concatenate(joints),
+        (np.cumsum(length) - length).astype(np.int64),
+        length,
+        np.array(first, np.int64),
+        np.array(clip_index, np.int64),
+        np.array(names, str),
+        np.array(subj, str),
+        np.array(fps, np.float64),
+        np.stack(dirs),
+    )
+    log.info("motion bank %s: %d segments, %d frames from %d clips", root, len(bank),
+             length.sum(), len(names))  # fmt: skip
+    return bank
+
+
+_MOTION_KEYS = tuple(f.name for f in fields(MotionBank))
+
+
+def save_motion_bank(path: str | Path, bank: MotionBank) -> Path:
+    """Write a :class:`MotionBank` to ``.npz`` atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, format=np.array(_MOTION_FORMAT), **{k: getattr(bank, k) for k in _MOTION_KEYS})
+    return path
+
+
+def load_motion_bank(path: str | Path) -> MotionBank:
+    """Read a bank written by :func:`save_motion_bank` (a sequence run's ``motion.npz``)."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "format" not in z.files or str(z["format"]) != _MOTION_FORMAT:
+                got = str(z["format"]) if "format" in z.files else "none"
+                raise InputError(path, "format", f"{_MOTION_FORMAT!r} (a motion.npz)", got)
+            missing = [k for k in _MOTION_KEYS if k not in z.files]
+            if missing:
+                raise InputError(path, missing[0], "an array of a motion bank", "missing")
+            return MotionBank(**{k: z[k] for k in _MOTION_KEYS})
+    except (OSError, ValueError, EOFError) as e:
+        if isinstance(e, InputError):
+            raise
+        raise InputError(path, None, "a motion bank .npz (motion.npz)", e) from None
+
+
+@dataclass
+class _Sequence:
+    """One sequence: a body moving through T frames, seen by one rig of V cameras."""
+
+    vertices: np.ndarray  # (T, N, 3) world metres
+    joints: np.ndarray  # (T, 17, 3) COCO-17, world metres
+    phenotypes: np.ndarray  # (6,)
+    subject: str
+    clip: str
+    frames: np.ndarray  # (T,) source frames in the clip
+    mirrored: bool
+    fps: float  # frames per second
+    speed: float  # motion seconds per second
+    rejected: int  # implausible sequences drawn and replaced
+    K: np.ndarray  # (V, 3, 3) pixels
+    R: np.ndarray  # (V, 3, 3)
+    t: np.ndarray  # (V, 3) metres
+    size: np.ndarray  # (V, 2) pixels
+    projected: np.ndarray  # (T, V, 17, 2) pixels
+
+
+def draw_window(
+    bank: MotionBank, frames: int, fps_range, speed_range, rng: np.random.Generator
+) -> tuple[int, np.ndarray, float, float]:
+    """A window of ``frames`` frames of one segment, its source frames every k-th.
+
+    The segment is drawn in proportion to its length among those with at least ``frames``
+    frames; a frame rate log-uniformly in ``fps_range`` and a speed uniformly in
+    ``speed_range``; ``k = round(speed * source fps / fps)`` (at least 1, at most what the
+    segment holds), so the realised rate is ``source fps * speed / k``.
+
+    Returns:
+        (segment, rows of ``bank.rotations`` (frames,), realised fps, speed).
+    """
+    usable = bank.length >= frames
+    p = np.where(usable, bank.length, 0).astype(float)
+    seg = int(rng.choice(len(bank), p=p / p.sum()))
+    fps = float(np.exp(rng.uniform(*np.log(fps_range))))
+    speed = float(rng.uniform(*speed_range))
+    source = float(bank.fps[bank.clip_index[seg]])
+    n = int(bank.length[seg])
+    most = (n - 1) // max(frames - 1, 1)
+    k = int(np.clip(round(speed * source / fps), 1, max(most, 1)))
+    begin = int(rng.integers(0, n - (frames - 1) * k))
+    rows = bank.start[seg] + begin + k * np.arange(frames)
+    return seg, rows, source * speed / k, speed
+
+
+def _sequence_pose(worker: Worker, seg: int, rows: np.ndarray, phen: np.ndarray, mirrored, rng):
+    """anny deltas (T, P, 3, 3) of the window ``rows`` on one body: one perturbation of the
+    driven bones for the whole sequence, mirrored or not as a whole."""
+    from rmpl.synth.retarget import (
+        anny_deltas,
+        bone_parents,
+        mirror_pose,
+        perturb_pose,
+        reference_heads,
+    )
+
+    body, bank, T = worker.body, worker.motion, len(rows)
+    ref = reference_heads(body, phen[None])  # (1, P, 3)
+    dirs = bank.rest_dirs[bank.clip_index[seg]].astype(float)
+    pose = anny_deltas(
+        bank.rotations[rows].astype(float),
+        dirs,
+        np.repeat(ref, T, axis=0),
+        body.bone_names,
+        bone_parents(body),
+    )
+    # perturb_pose on the identity gives the rotations it would apply; use them every frame.
+    turn = perturb_pose(body.identity_pose(1)[..., :3, :3], body.bone_names, rng,
+                        worker.cfg.perturb_deg)[0]  # fmt: skip
+    pose = turn @ pose
+    return mirror_pose(pose, body.bone_names) if mirrored else pose
+
+
+def _leg_length(joints: np.ndarray) -> float:
+    """Mean hip-knee-ankle length of both legs over the frames, metres. joints: (T, 17, 3)."""
+    legs = [(11, 13, 15), (12, 14, 16)]
+    bones = [np.linalg.norm(joints[:, a] - joints[:, b], axis=-1) for h, k, f in legs
+             for a, b in ((h, k), (k, f))]  # fmt: skip
+    return float(np.mean(bones) * 2)
+
+
+def follow_root(
+    vertices: np.ndarray, joints: np.ndarray, mocap: np.ndarray, yaw: float, where: np.ndarray
+):
+    """Move the posed body along the mocap's path, stand it on the floor, turn and place it.
+
+    The body's mid-hip follows the mocap's mid-hip path, scaled by the ratio of the two leg
+    lengths (a shorter body takes shorter steps), centred horizontally on the sequence's
+    mean; the lowest vertex of the whole sequence lands on the floor (z = 0, so jumps and
+    steps up stay in the air); then the sequence turns by ``yaw`` about +z and moves by
+    ``where``.
+
+    Args:
+        vertices: (T, N, 3) and joints (T, 17, 3) of the posed body, anny's frame, metres.
+        mocap: the mocap's COCO-17 joints of the same frames (T, 17, 3), metres, z up.
+        yaw: radians. where: (2,) metres, where the path's centre lands on the floor.
+
+    Returns:
+        vertices (T, N, 3) and joints (T, 17, 3), world metres.
+    """
+    scale = _leg_length(joints) / max(_leg_length(mocap), 1e-6)
+    path = mocap[:, 11:13].mean(axis=1)  # (T, 3) mocap mid-hip
+    path = scale * (path - np.r_[path[:, :2].mean(axis=0), 0.0])
+    shift = path - joints[:, 11:13].mean(axis=1)  # (T, 3)
+    vertices, joints = vertices + shift[:, None], joints + shift[:, None]
+    floor = vertices[..., 2].min()
+    c, s = np.cos(yaw), np.sin(yaw)
+    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    move = np.r_[where, -floor]
+    return (
+        (vertices @ Rz.T + move).astype(np.float32),
+        (joints @ Rz.T + move).astype(np.float32),
+    )
+
+
+def _draw_sequence(worker: Worker, rng: np.random.Generator) -> _Sequence:
+    """One plausible sequence placed in the room, seen by one random rig."""
+    from rmpl.geometry.camera import project
+    from rmpl.synth.body import sample_phenotypes
+    from rmpl.synth.cameras import sample_cameras
+    from rmpl.synth.retarget import implausible
+
+    cfg, bank, T = worker.cfg, worker.motion, worker.cfg.sequence_frames
+    rejected = 0
+    for _ in range(cfg.max_tries):
+        seg, rows, fps, speed = draw_window(bank, T, cfg.sequence_fps, cfg.sequence_speed, rng)
+        phen = sample_phenotypes(1, rng, cfg.min_age)[0]
+        mirrored = bool(rng.random() < cfg.mirror)
+        pose = _sequence_pose(worker, seg, rows, phen, mirrored, rng)
+        bodies = worker.body(pose, np.repeat(phen[None], T, axis=0))
+        if not implausible(bodies.keypoints).any():
+            break
+        rejected += 1
+    else:
+        raise RuntimeError(
+            f"{cfg.max_tries} sequences in a row had an implausible frame; check 'poses' "
+            f"({cfg.poses}) or raise max_tries"
+        )
+    mocap = bank.joints[rows].astype(float)
+    if mirrored:
+        mocap = mocap * np.array([-1.0, 1.0, 1.0])
+    yaw, where = rng.uniform(-np.pi, np.pi), rng.uniform(-cfg.room, cfg.room, 2)
+    verts, kps = follow_root(bodies.vertices, bodies.keypoints, mocap, yaw, where)
+    center = kps[:, 11:13].mean(axis=1).mean(axis=0).astype(float)  # (3,)
+    K, R, t, size = (a[0] for a in sample_cameras(cfg.views, center[None], cfg.camera_preset, rng))
+    if cfg.image_size:
+        K, size = _scale_cameras(K, size, tuple(cfg.image_size))
+    proj = project(kps[:, None].astype(float), K[None, :, None], R[None, :, None], t[None, :, None])
+    ci = int(bank.clip_index[seg])
+    return _Sequence(
+        verts, kps, phen, str(bank.subjects[ci]), str(bank.clips[ci]),
+        bank.first[seg] + rows - bank.start[seg], mirrored, fps, speed, rejected,
+        K, R, t, size, proj,
+    )  # fmt: skip
+
+
+def _render_detect(worker: Worker, seq: _Sequence, rng: np.random.Generator, times: dict):
+    """Render every frame from every camera and detect: keypoints (T, V, 17, 2) pixels,
+    scores (T, V, 17). One outfit and lighting for the sequence; each camera keeps its
+    background (the same seed for every frame). Frames are detected as they are rendered,
+    so at most V images are held at once."""
+    from rmpl.synth.render import random_lighting, random_outfits
+
+    colors = random_outfits(worker.body.vertex_parts, 1, rng)
+    light = random_lighting(rng)
+    backdrop = int(rng.integers(0, 2**63 - 1))
+    cams = (seq.K[None], seq.R[None], seq.t[None], seq.size[None])
+    kps, scores = [], []
+    for f in range(len(seq.vertices)):
+        t0 = time.perf_counter()
+        images = worker.renderer.render(
+            seq.vertices[f : f + 1], colors, *cams, lighting=[light], rng=backdrop
+        )
+        t1 = time.perf_counter()
+        kp, sc = worker.detector(images)
+        times["render"] += t1 - t0
+        times["detect"] += time.perf_counter() - t1
+        kps.append(np.asarray(kp, np.float32).reshape(len(images), 17, 2))
+        scores.append(np.asarray(sc, np.float32).reshape(len(images), 17))
+    return np.stack(kps), np.stack(scores)
+
+
+def _sequence_shard(worker: Worker, index: int, first: int, n: int, out: str | Path) -> dict:
+    """Sequences ``first .. first + n - 1`` as shard ``index`` (see :func:`generate_shard`)."""
+    cfg = worker.cfg
+    times = {"pose": 0.0, "render": 0.0, "detect": 0.0}
+    parts: dict[str, list] = {k: [] for k in SEQUENCE_ARRAYS}
+    rejected = 0
+    for i in range(first, first + n):
+        rng = np.random.default_rng([cfg.seed, i, 2])  # a sequence is the same in any shard
+        t0 = time.perf_counter()
+        seq = _draw_sequence(worker, rng)
+        times["pose"] += time.perf_counter() - t0
+        kp, sc = _render_detect(worker, seq, rng, times)
+        rejected += seq.rejected
+        T = len(seq.joints)
+        row = {
+            "joints3d": seq.joints.astype(np.float32),
+            "keypoints": kp,
+            "scores": sc,
+            "projected": seq.projected.astype(np.float32),
+            "times": np.arange(T) / seq.fps,
+            "fps": np.float64(seq.fps),
+            "speed": np.float64(seq.speed),
+            "K": seq.K,
+            "R": seq.R,
+            "t": seq.t,
+            "size": seq.size.astype(np.int32),
+            "phenotypes": seq.phenotypes.astype(np.float32),
+            "subject": np.asarray(seq.subject, str),
+            "clip": np.asarray(seq.clip, str),
+            "frame": seq.frames.astype(np.int64),
+            "mirrored": np.bool_(seq.mirrored),
+        }
+        for key, value in row.items():
+            parts[key].append(value)
+    arrays = {k: np.stack(v) for k, v in parts.items()}
+    T, V = cfg.sequence_frames, cfg.views
+    stats = {
+        "shard": index,
+        "sequences": n,
+        "meshes": n * T,
+        "views": n * T * V,
+        "rejected": rejected,
+        "missed_joints": int((arrays["scores"] == 0).sum()),
+        "missed_views": int((arrays["scores"] == 0).all(-1).sum()),
+        "seconds": times,
+    }
+    _write_shard(shard_path(out, index), arrays, stats)
+    return stats
+
+
 # --------------------------------------------------------------------------- the driver
 
 _WORKER: Worker | None = None
@@ -519,6 +1040,8 @@ def _prepare_bank(cfg: GenerateConfig, out: Path) -> Path | None:
 
     if cfg.poses == "random":
         return None
+    if cfg.sequences:
+        return _prepare_motion(cfg, out)
     src = Path(cfg.poses)
     target = out / "poses.npz"
     if target.is_file():
@@ -545,25 +1068,65 @@ def _prepare_bank(cfg: GenerateConfig, out: Path) -> Path | None:
     return save_pose_bank(target, bank)
 
 
+def _prepare_motion(cfg: GenerateConfig, out: Path) -> Path:
+    """The motion bank the workers of a sequence run read (``out/motion.npz``, built once
+    from a motion folder, or the subjects' segments of a given ``motion.npz``)."""
+    src, target = Path(cfg.poses), out / "motion.npz"
+    if target.is_file():
+        bank = load_motion_bank(target)
+    elif src.is_dir():
+        bank = build_motion_bank(src, list(cfg.subjects) or None, cfg.exclude_subjects)
+    elif src.is_file():
+        bank = load_motion_bank(src)
+        subj = bank.subjects[bank.clip_index]
+        keep = ~np.isin(subj, list(cfg.exclude_subjects))
+        if cfg.subjects:
+            keep &= np.isin(subj, list(cfg.subjects))
+        bank = bank.select(keep)
+        if not len(bank):
+            raise InputError(src, "subjects", "motion of the selected subjects", "none")
+    else:
+        raise InputError(None, "poses", "a motion folder or a motion.npz", src)
+    longest = int(bank.length.max())
+    if longest < cfg.sequence_frames:
+        raise InputError(
+            src,
+            "sequence_frames",
+            f"at most the longest clean motion segment ({longest} frames)",
+            cfg.sequence_frames,
+        )
+    return target if target.is_file() else save_motion_bank(target, bank)
+
+
 def _bank_arrays(bank) -> tuple[np.ndarray, ...]:
     return (bank.rotations, bank.rest_dirs, bank.joints, bank.subject, bank.clip, bank.frame)
 
 
 def _write_manifest(out: Path, cfg: GenerateConfig, detector: str, extra: dict) -> None:
     manifest = {
-        "format": FORMAT,
-        "config": asdict(cfg),
+        "format": SEQUENCE_FORMAT if cfg.sequences else FORMAT,
+        "config": _config_dict(cfg),
         "detector": detector,
         "skeleton": "coco17",
         "joints": list(COCO17.joints),
         "units": {"3d": "metres", "2d": "pixels, pixel (i, j) centred on (i, j)"},
         "world": "z up, floor at z = 0",
         "camera_model": "x_cam = R X + t; pinhole K, no distortion",
-        "arrays": {k: {"shape": s, "meaning": m} for k, (s, m) in SHARD_ARRAYS.items()},
+        "arrays": {k: {"shape": s, "meaning": m} for k, (s, m) in shard_arrays(cfg).items()},
         "num_shards": cfg.num_shards,
         "versions": _versions(),
         **extra,
     }
+    if cfg.sequences:
+        manifest["sequences"] = {
+            "frames": cfg.sequence_frames,
+            "views": cfg.views,
+            "fps_range": list(cfg.sequence_fps),
+            "speed_range": list(cfg.sequence_speed),
+            "detector_mode": "every image detected afresh (static-image mode, as rmpl run "
+            "--videos); no tracking across frames",
+            "per_sequence": "one body (phenotype, outfit, lighting), one motion window, one rig",
+        }
     with atomic_path(out / "manifest.json") as tmp:
         tmp.write_text(json.dumps(manifest, indent=2))
 
@@ -573,9 +1136,12 @@ def _check_same_config(out: Path, cfg: GenerateConfig) -> None:
     if not path.is_file():
         return
     old = json.loads(path.read_text()).get("config", {})
-    new = json.loads(json.dumps(asdict(cfg)))
+    new = json.loads(json.dumps(_config_dict(cfg)))
     # num_meshes may grow or shrink: shards are seeded by (seed, index) alone.
     diff = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k) and k != "num_meshes")
+    if "sequence_frames" in diff:  # sequences or not, and how long: the first thing to say
+        diff.remove("sequence_frames")
+        diff.insert(0, "sequence_frames")
     if diff:
         raise InputError(
             path,
@@ -596,6 +1162,7 @@ def summarize(out: str | Path) -> dict:
         "missed_views": 0,
     }
     seconds = {"pose": 0.0, "render": 0.0, "detect": 0.0}
+    sequences = None
     for p in list_shards(out):
         with np.load(p, allow_pickle=False) as z:
             s = json.loads(str(z["stats"]))
@@ -604,6 +1171,10 @@ def summarize(out: str | Path) -> dict:
             totals[k] += s[k]
         for k in seconds:
             seconds[k] += s["seconds"][k]
+        if "sequences" in s:
+            sequences = (sequences or 0) + s["sequences"]
+    if sequences is not None:  # a sequence set: meshes are its frames, views its renders
+        totals["sequences"] = sequences
     return {**totals, "stage_seconds": seconds}
 
 
@@ -636,8 +1207,11 @@ def generate(
     bank = _prepare_bank(cfg, out)
     bank_info = _bank_info(bank)
     _write_manifest(out, cfg, cfg.detector, {"status": "running", **bank_info})
+    arrays = shard_arrays(cfg)
     todo = [
-        i for i in range(cfg.num_shards) if not _shard_ok(shard_path(out, i), _shard_meshes(cfg, i))
+        i
+        for i in range(cfg.num_shards)
+        if not _shard_ok(shard_path(out, i), _shard_meshes(cfg, i), arrays)
     ]
     done = cfg.num_shards - len(todo)
     if done:
@@ -660,9 +1234,19 @@ def generate(
 
 
 def _bank_info(bank: Path | None) -> dict:
-    """The manifest's description of the pose bank: poses per subject."""
+    """The manifest's description of the pose bank: poses per subject (or, for a motion
+    bank, its segments and seconds per subject)."""
     if bank is None:
         return {}
+    if bank.name == "motion.npz":
+        m = load_motion_bank(bank)
+        return {
+            "motion": {
+                "segments": len(m),
+                "frames": int(m.length.sum()),
+                "seconds_per_subject": m.seconds_per_subject(),
+            }
+        }
     from rmpl.synth.retarget import load_pose_bank
 
     b = load_pose_bank(bank)
@@ -763,14 +1347,18 @@ def _finish(
         cfg.detector,
         {"status": "complete" if complete else "partial", "counts": summary, **bank_info},
     )
+    what = f"{summary['meshes']} meshes"
+    if cfg.sequences:
+        what = f"{summary['sequences']} sequences x {cfg.sequence_frames} frames"
     log.info(
-        "%s: %d meshes x %d views in %d shards (%d poses rejected); this run %d (mesh, view) "
+        "%s: %s x %d views in %d shards (%d %s rejected); this run %d (mesh, view) "
         "samples in %.1f s = %.2f samples/s",
         out,
-        summary["meshes"],
+        what,
         cfg.views,
         summary["shards"],
         summary["rejected"],
+        "sequences" if cfg.sequences else "poses",
         new_views,
         elapsed,
         rate,
