@@ -148,3 +148,45 @@ def test_short_ghost_tracks_are_dropped():
     assert kept.points.shape[1] == 3
     with pytest.raises(ValueError, match="min_track_frames"):
         RunConfig(min_track_frames=0)
+
+
+def _true_person(kp, rig, X):
+    """(T, V, N) which of the true people X (T, 2, J, 3) each 2D person of kp is."""
+    proj = rig.project(X.reshape(len(X), -1, 3)).reshape(len(X), len(rig), 2, 1, -1, 2)
+    d = np.nanmean(np.linalg.norm(kp[:, :, None] - proj, axis=-1), -1)  # (T, V, 2, N)
+    return np.argmin(d, axis=2)
+
+
+@pytest.mark.parametrize(
+    "method, model", [("triangulate", "default"), ("robust", "default"), ("rmpl", "temporal")]
+)
+def test_membership_points_each_track_at_its_own_2d(method, model):
+    """Detectors list people in any order and a view can miss one: each track's membership
+    names, in every frame and view, the input's 2D of one and the same true person."""
+    rig, X, kp, sc = two_walkers(T=30)
+    who = _true_person(kp, rig, X)
+    missed = who[7, 2, 0]
+    kp[7, 2, 0], sc[7, 2, 0] = np.nan, 0  # view 2 misses its first-listed person in frame 7
+    poses = run(kp, sc, rig, fps=30.0, config=RunConfig(method=method, model=model), progress=False)
+    m = poses.membership
+    assert m.shape == (30, 2, 4) and poses.camera_names == tuple(rig.names)
+    identity = []
+    for p in range(2):
+        t, v = np.nonzero(m[:, p] >= 0)
+        ids = who[t, v, m[t, p, v]]
+        assert len(set(ids.tolist())) == 1  # never another person's 2D
+        identity.append(ids[0])
+    assert sorted(identity) == [0, 1]
+    lost = identity.index(missed)
+    assert m[7, lost, 2] == -1 and m[7, 1 - lost, 2] == 1  # the other one, listed second
+    assert (m >= 0).sum() == 30 * 2 * 4 - 1
+
+
+def test_robust_triangulation_records_the_keypoints_it_left_out():
+    rig, X, kp, sc = two_walkers(T=12)
+    kp[:, 0, :, 9] += 60.0  # view 0's left wrists are 60 px off: robust drops them
+    robust = run(kp, sc, rig, fps=30.0, config=RunConfig(method="robust"), progress=False)
+    assert (robust.views_excluded[:, :, 0] >= 1).all()
+    assert robust.views_excluded[:, :, 1:].sum() < robust.views_excluded[:, :, 0].sum() / 4
+    plain = run(kp, sc, rig, fps=30.0, config=RunConfig(method="triangulate"), progress=False)
+    assert (plain.views_excluded == 0).all()  # plain DLT uses every keypoint

@@ -210,8 +210,8 @@ class Poses3D:
             names = self.camera_names
             if isinstance(names, np.ndarray):
                 names = names.tolist()
-            if isinstance(names, str) or not all(isinstance(n, str) and n for n in names):
-                raise InputError(None, "camera_names", "a list of non-empty names", names)
+            if isinstance(names, str) or not all(isinstance(n, str) for n in names):
+                raise InputError(None, "camera_names", "a list of names", names)
             if len(set(names)) != len(names):
                 raise InputError(None, "camera_names", "distinct names", list(names))
             self.camera_names = tuple(names)

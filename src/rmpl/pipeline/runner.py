@@ -9,7 +9,12 @@ Each stage is a function usable on its own:
 4. :func:`smooth`: outlier removal, gap filling (flagged as interpolated) and a zero-phase
    Butterworth or a one-euro filter (:mod:`rmpl.pipeline.filters`).
 
-:func:`run` chains them and returns a :class:`rmpl.io.poses.Poses3D`.
+:func:`run` chains them and returns a :class:`rmpl.io.poses.Poses3D`. It keeps, per track,
+frame and view, which 2D person of the input the track used (``membership``, from each
+frame's :attr:`Association.members <rmpl.pipeline.association.Association>` through the
+tracker's index) and how many of that person's keypoints the estimator left out
+(``views_excluded``), so that the 3D can be checked against each view's 2D afterwards
+(:mod:`rmpl.pipeline.consistency`).
 
 Shape glossary: ``T`` frames, ``V`` views, ``P`` people, ``N`` people in one frame,
 ``J`` joints.
@@ -152,29 +157,37 @@ def associate_frames(
     ]
 
 
-def _estimator(config: RunConfig):
+def _estimator(config: RunConfig, used: bool = False):
+    """``fn(kp, sc, rig) -> (points, num_views)``, or with ``used`` ``(points, num_views,
+    views used (N, V, J) bool)``."""
     from rmpl.geometry.triangulate import triangulate, triangulate_robust
     from rmpl.skeleton import COCO17
+
+    def out(points, num_views, mask):
+        return (points, num_views, mask) if used else (points, num_views)
 
     if config.method == "rmpl":
         from rmpl.inference import Lifter
 
         lifter = Lifter.from_pretrained(config.model)
         up = None if config.up is None else np.asarray(config.up, float)
-        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
-            lifter.lift(kp, sc, rig, up=up)
-        )
+
+        def lift(kp, sc, rig):
+            r = lifter.lift(kp, sc, rig, up=up)
+            return out(r.points, r.num_views, np.isfinite(kp).all(-1) & (sc > 0))
+
+        return lift
     if config.method == "robust":
         kwargs = {
             "min_score": 0.3 if config.min_score is None else config.min_score,
             "max_error": config.max_error,
             "swap_pairs": COCO17.flip_pairs if config.swap_check else None,
         }
-        return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
+        return lambda kp, sc, rig: (lambda r: out(r.points, r.num_views, r.views))(
             triangulate_robust(kp, sc, rig, **kwargs)
         )
     min_score = config.min_score or 0.0
-    return lambda kp, sc, rig: (lambda r: (r.points, r.num_views))(
+    return lambda kp, sc, rig: (lambda r: out(r.points, r.num_views, r.views))(
         triangulate(kp, sc, rig, min_score=min_score)
     )
 
@@ -186,31 +199,42 @@ def estimate(
     chunk: int = 2048,
     progress: bool = False,
     fn=None,
-) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    used: bool = False,
+) -> tuple[list[np.ndarray], ...]:
     """3D joints of every associated person, batched over frames.
 
-    ``fn(kp, sc, rig) -> (points, num_views)`` replaces the estimator ``config`` names.
+    ``fn(kp, sc, rig) -> (points, num_views)`` replaces the estimator ``config`` names
+    (with ``used``, ``fn`` must also return the views used, (N, V, J) bool).
 
     Returns:
-        Per frame: points (N, J, 3) metres and the number of views per joint (N, J).
+        Per frame: points (N, J, 3) metres and the number of views per joint (N, J); with
+        ``used`` also which views each joint used (N, V, J) bool.
     """
     from tqdm import tqdm
 
-    fn = fn or _estimator(config)
+    fn = fn or _estimator(config, used=used)
     counts = [len(a) for a in people]
     if sum(counts) == 0:
         J = people[0].keypoints.shape[-2] if people else 17
-        return [np.zeros((0, J, 3)) for _ in people], [np.zeros((0, J), int) for _ in people]
+        V = people[0].keypoints.shape[1] if people else 0
+        empty = [np.zeros((0, J, 3)) for _ in people], [np.zeros((0, J), int) for _ in people]
+        return (*empty, [np.zeros((0, V, J), bool) for _ in people]) if used else empty
     kp = np.concatenate([a.keypoints for a in people if len(a)])
     sc = np.concatenate([a.scores for a in people if len(a)])
     pts = np.empty((len(kp), kp.shape[-2], 3))
     nv = np.empty((len(kp), kp.shape[-2]), int)
+    mask = np.zeros(sc.shape, bool)  # (all people, V, J)
     starts = range(0, len(kp), chunk)
     if progress and len(kp) > chunk:
         starts = tqdm(starts, desc=config.method, unit="chunk")
     for s in starts:
-        pts[s : s + chunk], nv[s : s + chunk] = fn(kp[s : s + chunk], sc[s : s + chunk], rig)
+        r = fn(kp[s : s + chunk], sc[s : s + chunk], rig)
+        pts[s : s + chunk], nv[s : s + chunk] = r[0], r[1]
+        if used:
+            mask[s : s + chunk] = r[2]
     split = np.cumsum(counts)[:-1]
+    if used:
+        return np.split(pts, split), np.split(nv, split), np.split(mask, split)
     return np.split(pts, split), np.split(nv, split)
 
 
@@ -222,21 +246,62 @@ def track_people(
     Returns:
         tracks (T, P, J, 3), views (T, P, J) (0 where absent), ids (P,).
     """
+    return _track(points, num_views, config)[:3]
+
+
+def _track(points: list[np.ndarray], num_views: list[np.ndarray], config: RunConfig):
+    """:func:`track_people` plus the index (T, P) of each track's person per frame."""
     T = len(points)
     J = points[0].shape[-2] if T else 17
     if all(len(p) <= 1 for p in points):  # a single person: no identities to keep
-        tracks = np.full((T, 1, J, 3), np.nan)
-        views = np.zeros((T, 1, J), int)
-        for t, (p, v) in enumerate(zip(points, num_views, strict=True)):
-            if len(p):
-                tracks[t, 0], views[t, 0] = p[0], v[0]
-        return tracks, views, np.array([0])
-    index, ids = track_index(points, config)
+        index, ids = np.array([[0 if len(p) else -1] for p in points]).reshape(T, 1), [0]
+    else:
+        index, ids = track_index(points, config)
     tracks = np.full((T, index.shape[1], J, 3), np.nan)
     views = np.zeros(tracks.shape[:3], int)
     for t, p in zip(*np.nonzero(index >= 0), strict=True):
         tracks[t, p], views[t, p] = points[t][index[t, p]], num_views[t][index[t, p]]
-    return tracks, views, ids
+    return tracks, views, np.asarray(ids), index
+
+
+def view_records(
+    people: list[Association],
+    index: np.ndarray,
+    present: np.ndarray,
+    num_views: list[np.ndarray] | None = None,
+    used: list[np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which 2D person of each view every track used, and how many of its keypoints were
+    left out.
+
+    Args:
+        people: per frame, the :class:`Association` of :func:`associate_frames`.
+        index: (T, P) each track's person in each frame, -1 where absent.
+        present: (T, V, N_in) the 2D input's people with a keypoint (score > 0), as
+            :func:`associate_frames` saw them: its per-view lists hold only these.
+        num_views: per frame, views per joint (N, J) of the estimator; with ``used``.
+        used: per frame, the views each joint used (N, V, J) bool; None: nothing left out.
+
+    Returns:
+        membership (T, P, V): the index on the 2D input's people axis, -1 where none;
+        excluded (T, P, V): keypoints with confidence > 0 of that person the estimator did
+        not use for a joint it estimated.
+    """
+    T, P = index.shape
+    V = present.shape[1]
+    membership = np.full((T, P, V), -1, np.int64)
+    excluded = np.zeros((T, P, V), np.int32)
+    for t, p in zip(*np.nonzero(index >= 0), strict=True):
+        n = index[t, p]
+        m = people[t].members[n]  # (V,) into each view's list of present people
+        for v in np.flatnonzero(m >= 0):
+            membership[t, p, v] = np.flatnonzero(present[t, v])[m[v]]
+        if used is not None:
+            a = people[t]
+            available = np.isfinite(a.keypoints[n]).all(-1) & (a.scores[n] > 0)  # (V, J)
+            estimated = num_views[t][n] > 0  # (J,)
+            excluded[t, p] = (available & ~used[t][n] & estimated).sum(-1)
+    return membership, excluded
 
 
 def track_index(points: list[np.ndarray], config: RunConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -304,6 +369,11 @@ def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Run
         (T, P, J), ids (P,) and interpolated (T, P, J): frames the model filled, where the
         track had no 2D.
     """
+    return _lift_people(people, rig, fps, cfg)[:5]
+
+
+def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: RunConfig):
+    """:func:`lift_people` plus the index (T, P) of each track's person per frame."""
     from rmpl.inference import Lifter
     from rmpl.inference_temporal import TemporalLifter
     from rmpl.model.temporal import RADIUS_50
@@ -321,7 +391,8 @@ def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Run
     if not any(len(p) for p in pts):  # nobody anywhere: an empty result (refused upstream)
         T = len(pts)
         empty = np.zeros((T, 0, J))
-        return np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0
+        index = np.zeros((T, 0), int)
+        return np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0, index
     if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
     else:
@@ -330,7 +401,7 @@ def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Run
     tracks, sigma, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up)
     filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
     interpolated = filled & np.isfinite(tracks).all(-1)
-    return tracks, sigma * RADIUS_50, views, ids, interpolated
+    return tracks, sigma * RADIUS_50, views, ids, interpolated, index
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:
@@ -377,7 +448,9 @@ def run(
         temporal: apply :func:`smooth` (outliers, gaps, filter); False keeps raw estimates.
 
     Returns:
-        :class:`Poses3D` with per-joint source flags and view counts.
+        :class:`Poses3D` with per-joint source flags and view counts, and per view the 2D
+        person each track used (``membership``) and the keypoints left out
+        (``views_excluded``).
     """
     cfg = config or RunConfig()
     T = keypoints.shape[0]
@@ -385,12 +458,15 @@ def run(
         check_cutoff(cfg.cutoff, fps)  # before the long part (the temporal model has no filter)
     keypoints, scores = drop_far(keypoints, scores, rig)
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
+    present = (scores > 0).any(-1)  # (T, V, N_in): the people associate_frames saw
     uncertainty = None
     if _is_temporal(cfg):  # whole tracks through the temporal lifter: it is the filter
-        tracks, uncertainty, views, ids, interpolated = lift_people(people, rig, fps, cfg)
+        tracks, uncertainty, views, ids, interpolated, index = _lift_people(people, rig, fps, cfg)
+        membership, excluded = view_records(people, index, present)
     else:
-        pts, nv = estimate(people, rig, cfg, progress=progress)
-        tracks, views, ids = track_people(pts, nv, cfg)
+        pts, nv, used = estimate(people, rig, cfg, progress=progress, used=True)
+        tracks, views, ids, index = _track(pts, nv, cfg)
+        membership, excluded = view_records(people, index, present, nv, used)
         interpolated = np.zeros(tracks.shape[:-1], bool)
         if temporal:
             tracks, interpolated = smooth(tracks, fps, cfg)
@@ -408,4 +484,7 @@ def run(
         fps=fps,
         person_ids=np.asarray(ids),
         uncertainty=uncertainty,
+        membership=membership,
+        views_excluded=np.where(ok.any(-1)[..., None], excluded, 0),
+        camera_names=rig.names,
     )
