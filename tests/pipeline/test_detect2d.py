@@ -176,11 +176,11 @@ def test_run_bad_input_is_one_line_and_leaves_nothing(tmp_path, capsys, case, me
 
 
 def test_cache_is_not_reused_for_other_inputs(tmp_path, monkeypatch):
+    from rmpl.pipeline import detect2d
     from rmpl.pipeline.inputs import InputSpec, _load_2d
-    from rmpl.synth import detect
 
     det = CountingDetector()
-    monkeypatch.setitem(detect.DETECTORS, "counting", lambda: det)
+    monkeypatch.setitem(detect2d.DETECTORS, "counting", lambda: det)
     det.close = lambda: None
     save_rig(_rig(2), tmp_path / "calib.toml")
     videos = [str(write_video(tmp_path / f"v{v}.mp4", _frames(4, v))) for v in range(2)]
@@ -218,12 +218,12 @@ class OracleDetector:
 
 def test_run_videos_end_to_end_with_a_stand_in_detector(tmp_path, monkeypatch):
     from rmpl.io.poses import load_poses
-    from rmpl.synth import detect
+    from rmpl.pipeline import detect2d
 
     T, V = 3, 3
     rig = _rig(V)
     X = np.random.default_rng(0).uniform(-0.3, 0.3, (T, 17, 3)) + [0, 0, 1]
-    monkeypatch.setitem(detect.DETECTORS, "oracle", lambda: OracleDetector(rig.project(X)))
+    monkeypatch.setitem(detect2d.DETECTORS, "oracle", lambda: OracleDetector(rig.project(X)))
     save_rig(rig, tmp_path / "calib.toml")
     # Videos named after the cameras but given in another order: matched by name.
     for v in range(V):

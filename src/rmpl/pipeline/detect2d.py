@@ -1,30 +1,45 @@
-"""2D keypoints from synchronised videos or image folders, one person per view.
+"""2D keypoints from synchronised videos or image folders, one or several people per view.
 
-Each view is run through a :class:`rmpl.synth.detect.Detector` (the same adapter the MHP
-generator uses), so any detector that follows that protocol plugs in. The default is
-MediaPipe BlazePose (``mediapipe==0.10.14``, ``model_complexity=1``, the model shipped in the
-wheel: nothing is downloaded), in static-image mode, i.e. every frame is detected afresh as
-in the training data of the shipped lifter. Videos are read with OpenCV (``cv2``, which
-comes with mediapipe). Install both with ``pip install 'rmpl[detect]'``.
+Each view is run through a :class:`rmpl.synth.detect.Detector` (the protocol the MHP
+generator also uses), so any detector that follows it plugs in: a single-person one, whose
+(B, J, 2) output gets a people axis of 1, or a :class:`rmpl.synth.detect.MultiPersonDetector`
+with (B, N, J, 2). :data:`DETECTORS` names the ones ``rmpl run --detector`` offers:
 
-The result is a :class:`rmpl.io.keypoints.Keypoints2D` with one person per view (``P = 1``),
+- ``blazepose-multi`` (the default, :data:`DEFAULT_DETECTOR`): BlazePose's own person
+  detector and landmark network (shipped in the ``mediapipe==0.10.14`` wheel) for up to 4
+  people per frame, each followed from frame to frame
+  (:class:`rmpl.synth.detect_multi.BlazePoseMulti`); frames of a view are fed in order.
+- ``blazepose-multi-static``: the same, every frame detected afresh (slower).
+- ``mediapipe``: MediaPipe's legacy ``Pose`` solution, one person per frame and view,
+  every frame afresh, as in the training data of the shipped lifter.
+
+Videos are read with OpenCV (``cv2``, which comes with mediapipe); nothing is downloaded.
+Install both with ``pip install 'rmpl[detect]'``.
+
+The result is a :class:`rmpl.io.keypoints.Keypoints2D` with ``P`` = the most people any
+view had in a frame (at least 1; a person's index in one view says nothing about the same
+index in another view or, for a detector that does not follow people, another frame),
 COCO-17 joints, the views named after the files (or folders) without their suffix, frames
 numbered from 0 and, for videos, the videos' frame rate.
 
 Every input is checked before any detection runs, and bad input raises one
 :class:`rmpl.errors.InputError` naming the file: a video OpenCV cannot open or decode,
 videos of different frame counts or frame rates (both are stated), an image folder with no
-image, image folders of different lengths, an unreadable image.
+image, image folders of different lengths, an unreadable image. A view in which nobody is
+found in any frame is named in a warning; nobody found in any view is an InputError.
 
 Detection is resumable: with ``cache_dir``, each finished view is saved there
 (``<index>_<view>.npz``) together with a fingerprint of its input (file names, sizes,
-modification times, detector name), and a later call with the same input reuses it.
+modification times) and of the detector (its name and people per frame), and a later call
+with the same input and detector reuses it; one- and multi-person results never mix.
 
-Shape glossary: ``T`` frames, ``V`` views, ``P`` people (1), ``J`` joints (17).
+Shape glossary: ``T`` frames, ``V`` views, ``P`` people slots, ``N`` people one detector
+call returns per image, ``J`` joints (17).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import re
@@ -51,6 +66,8 @@ __all__ = [
     "image_frames",
     "detect_videos",
     "detect_images",
+    "DETECTORS",
+    "DEFAULT_DETECTOR",
 ]
 
 log = logging.getLogger(__name__)
@@ -58,6 +75,29 @@ log = logging.getLogger(__name__)
 #: Files of an image folder that are read as frames (case-insensitive).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 _DIGITS = re.compile(r"(\d+)")
+
+
+def _mediapipe(**kwargs):
+    from rmpl.synth.detect import MediaPipeDetector
+
+    return MediaPipeDetector(**kwargs)
+
+
+def _blazepose_multi(**kwargs):
+    from rmpl.synth.detect_multi import BlazePoseMulti
+
+    return BlazePoseMulti(**kwargs)
+
+
+#: Detector factories by name, for ``rmpl run --detector`` (imported when called).
+DETECTORS: dict[str, Callable[[], object]] = {
+    "blazepose-multi": _blazepose_multi,
+    "blazepose-multi-static": functools.partial(_blazepose_multi, track=False),
+    "mediapipe": _mediapipe,
+}
+#: The detector of ``rmpl run --videos/--images``, chosen by measurement
+#: (``scripts/bench_detect.py``; docs/results.md).
+DEFAULT_DETECTOR = "blazepose-multi"
 
 
 @dataclass(frozen=True)
@@ -238,10 +278,8 @@ def input_fingerprint(paths: Sequence[str | Path], kind: str) -> list:
 
 def _make_detector(detector):
     """(detector, whether we own it and must close it)."""
-    from rmpl.synth.detect import DETECTORS, MediaPipeDetector
-
     if detector is None:
-        return MediaPipeDetector(model_complexity=1), True
+        detector = DEFAULT_DETECTOR
     if isinstance(detector, str):
         if detector not in DETECTORS:
             raise ValueError(f"detector must be one of {sorted(DETECTORS)}, got {detector!r}")
@@ -262,26 +300,45 @@ def _to_coco17(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray, np
 def _detect_stream(
     frames: Iterator[np.ndarray], num_frames: int, detector, batch: int, desc: str, progress
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Run the detector over RGB frames, ``batch`` at a time: (T, J, 2), (T, J)."""
+    """Run the detector over one view's RGB frames in order, ``batch`` at a time:
+    keypoints (T, N, J, 2), scores (T, N, J). A detector that follows people is reset
+    first."""
     from tqdm import tqdm
 
+    from rmpl.synth.detect import with_people_axis
+
+    reset = getattr(detector, "reset", None)
+    if reset is not None:
+        reset()
     kps, scs, chunk = [], [], []
+
+    def run(bar) -> None:
+        kp, sc = with_people_axis(detector, *detector(chunk), len(chunk))
+        kps.append(kp)
+        scs.append(sc)
+        bar.update(len(chunk))
+
     with tqdm(total=num_frames, desc=desc, unit="frame", disable=not progress) as bar:
         for image in frames:
             chunk.append(image)
             if len(chunk) == batch:
-                kp, sc = detector(chunk)
-                kps.append(kp)
-                scs.append(sc)
-                bar.update(len(chunk))
+                run(bar)
                 chunk = []
         if chunk:
-            kp, sc = detector(chunk)
-            kps.append(kp)
-            scs.append(sc)
-            bar.update(len(chunk))
-    kp, sc = np.concatenate(kps), np.concatenate(scs)
+            run(bar)
+    N = max(k.shape[1] for k in kps)  # a detector may return fewer slots in some calls
+    kp = np.concatenate([_pad_people(k, N) for k in kps])
+    sc = np.concatenate([_pad_people(s, N) for s in scs])
     return _to_coco17(detector, kp, sc)
+
+
+def _pad_people(a: np.ndarray, N: int) -> np.ndarray:
+    """(T, n, ...) -> (T, N, ...): empty slots appended (NaN keypoints, zero scores)."""
+    if a.shape[1] == N:
+        return a
+    fill = np.nan if a.ndim == 4 else 0.0
+    pad = np.full((a.shape[0], N - a.shape[1], *a.shape[2:]), fill)
+    return np.concatenate([a, pad], axis=1)
 
 
 def video_frames(info: VideoInfo) -> Iterator[np.ndarray]:
@@ -318,7 +375,7 @@ def _cached_view(path: Path, stamp: str) -> tuple[np.ndarray, np.ndarray] | None
         return None
     try:
         with np.load(path, allow_pickle=False) as data:
-            if str(data["stamp"]) != stamp:
+            if str(data["stamp"]) != stamp or data["keypoints"].ndim != 4:
                 return None
             return data["keypoints"], data["scores"]
     except (OSError, KeyError, ValueError):
@@ -331,14 +388,21 @@ def _save_view(path: Path, stamp: str, kp: np.ndarray, sc: np.ndarray) -> None:
         np.savez_compressed(f, stamp=np.array(stamp), keypoints=kp, scores=sc)
 
 
-def _detector_name(detector) -> str:
+def _detector_stamp(detector) -> dict:
+    """What identifies a detector's results: its name and, for an instance, its people per
+    image (a name from :data:`DETECTORS` fixes both)."""
     if detector is None:
-        return "mediapipe"
-    return detector if isinstance(detector, str) else str(getattr(detector, "name", "?"))
+        detector = DEFAULT_DETECTOR
+    if isinstance(detector, str):
+        return {"detector": detector}
+    from rmpl.synth.detect import max_people
+
+    return {"detector": str(getattr(detector, "name", "?")), "people": max_people(detector)}
 
 
 def _detect_views(
     names: list[str],
+    sources: Sequence[str | Path],
     fingerprint: list,
     num_frames: int,
     frames_of: Callable[[int], Iterator[np.ndarray]],
@@ -347,13 +411,13 @@ def _detect_views(
     cache_dir: str | Path | None,
     progress: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Detect every view (or reuse its cache): (T, V, 1, J, 2), (T, V, 1, J)."""
+    """Detect every view (or reuse its cache): (T, V, P, J, 2), (T, V, P, J)."""
     det, owned = None, False
     kps, scs = [], []
     try:
         for v, name in enumerate(names):
             cache = None if cache_dir is None else Path(cache_dir) / f"{v:02d}_{name}.npz"
-            stamp = json.dumps({"input": fingerprint[v], "detector": _detector_name(detector)})
+            stamp = json.dumps({"input": fingerprint[v], **_detector_stamp(detector)})
             hit = None if cache is None else _cached_view(cache, stamp)
             if hit is not None and hit[0].shape[0] == num_frames:
                 log.info("view %s: reusing detections from %s", name, cache)
@@ -371,7 +435,34 @@ def _detect_views(
     finally:
         if owned:
             det.close()
-    return np.stack(kps, axis=1)[:, :, None], np.stack(scs, axis=1)[:, :, None]
+    return _stack_views(kps, scs, sources)
+
+
+def _stack_views(
+    kps: list[np.ndarray], scs: list[np.ndarray], sources: Sequence[str | Path]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-view (T, N_v, J, 2) and (T, N_v, J) -> (T, V, P, J, 2), (T, V, P, J), with P the
+    most slots any view used (at least 1). Warns about a view where nobody was found.
+
+    Raises:
+        InputError: nobody found in any frame of any view.
+    """
+    seen = [(s > 0).any(axis=-1) for s in scs]  # per view (T, N_v): slot used in a frame
+    for source, used in zip(sources, seen, strict=True):
+        if not used.any():
+            log.warning("nobody was detected in any of the %d frames of %s", len(used), source)
+    if not any(used.any() for used in seen):
+        raise InputError(
+            ", ".join(map(str, sources)),
+            "people",
+            "at least one person detected in some frame of some view",
+            "nobody in any frame",
+        )
+    # Slots past the last one used in any frame of any view are dropped.
+    P = max(1, *(int(np.flatnonzero(used.any(axis=0)).max(initial=-1)) + 1 for used in seen))
+    kp = np.stack([_pad_people(k, max(P, k.shape[1]))[:, :P] for k in kps], axis=1)
+    sc = np.stack([_pad_people(s, max(P, s.shape[1]))[:, :P] for s in scs], axis=1)
+    return kp, sc
 
 
 def detect_videos(
@@ -382,29 +473,32 @@ def detect_videos(
     cache_dir: str | Path | None = None,
     progress: bool = True,
 ) -> Keypoints2D:
-    """Detect one person per frame in each of several synchronised videos.
+    """Detect people in every frame of each of several synchronised videos.
 
     Args:
         paths: one video per camera, any format OpenCV (FFmpeg) decodes.
-        detector: a :class:`rmpl.synth.detect.Detector`, a name from
-            :data:`rmpl.synth.detect.DETECTORS`, or None for MediaPipe BlazePose
-            (``model_complexity=1``). A detector passed in is not closed.
+        detector: a :class:`rmpl.synth.detect.Detector` (one person per image, or a
+            :class:`~rmpl.synth.detect.MultiPersonDetector`), a name from
+            :data:`DETECTORS`, or None for :data:`DEFAULT_DETECTOR`. A detector passed in
+            is not closed (but is reset before each view, if it can be).
         batch: frames handed to the detector at a time.
         cache_dir: folder for per-view results, to resume an interrupted run (optional).
         progress: show a progress bar per view.
 
     Returns:
-        COCO-17 keypoints (T, V, 1, 17, 2) in pixels, scores (T, V, 1, 17); views named after
+        COCO-17 keypoints (T, V, P, 17, 2) in pixels, scores (T, V, P, 17); views named after
         the files, frames 0..T-1, the videos' frame rate.
 
     Raises:
-        InputError: bad input (see the module docstring), before any detection runs.
+        InputError: bad input (see the module docstring), before any detection runs; or
+            nobody found in any frame of any video.
     """
     infos = check_videos(paths)
     names = view_names(paths)
     T = infos[0].num_frames
     kp, sc = _detect_views(
         names,
+        paths,
         input_fingerprint(paths, "videos"),
         T,
         lambda v: video_frames(infos[v]),
@@ -425,7 +519,7 @@ def detect_images(
     cache_dir: str | Path | None = None,
     progress: bool = True,
 ) -> Keypoints2D:
-    """Detect one person per image in each of several folders of synchronised frames.
+    """Detect people in every image of each of several folders of synchronised frames.
 
     Image ``i`` (in natural name order) of every folder is frame ``i``.
 
@@ -435,19 +529,20 @@ def detect_images(
         fps: frame rate to record, if known.
 
     Returns:
-        COCO-17 keypoints (T, V, 1, 17, 2) in pixels, scores (T, V, 1, 17); views named after
+        COCO-17 keypoints (T, V, P, 17, 2) in pixels, scores (T, V, P, 17); views named after
         the folders, frames 0..T-1.
 
     Raises:
         InputError: bad input (see the module docstring), before any detection runs (an
             image whose header is fine but whose data is corrupt is found when its turn
-            comes).
+            comes); or nobody found in any image.
     """
     files = check_image_folders(folders)
     names = view_names(folders)
     T = len(files[0])
     kp, sc = _detect_views(
         names,
+        folders,
         input_fingerprint(folders, "images"),
         T,
         lambda v: image_frames(files[v]),

@@ -1,8 +1,10 @@
 """2D keypoint detectors run on MHP renders, so the training 2D noise is a real detector's.
 
 A detector is anything that follows :class:`Detector`: images in, COCO-17 pixel keypoints
-and confidences out. Missing keypoints are NaN with score 0, and keypoints outside the
-image get score 0 (as in the thesis's generator). Pixels follow rmpl's convention: from the
+and confidences out, for one person per image or, with a people axis, several
+(:class:`MultiPersonDetector`; :func:`with_people_axis` gives both the same shape).
+Missing keypoints are NaN with score 0, and keypoints outside the image get score 0 (as in
+the thesis's generator). Pixels follow rmpl's convention: from the
 top-left, pixel ``(i, j)`` centred on ``(i, j)``.
 
 :class:`MediaPipeDetector` wraps MediaPipe's BlazePose (``mediapipe==0.10.14``, the legacy
@@ -10,7 +12,10 @@ top-left, pixel ``(i, j)`` centred on ``(i, j)``.
 complexities and newer mediapipe download weights at run time). Its 33 landmarks are mapped
 to COCO-17 by name, with the landmark *visibility* as the score.
 
-Shape glossary: ``B`` images, ``J`` joints (17).
+The multi-person detector of the video path, BlazePose's networks run for every person, is
+:class:`rmpl.synth.detect_multi.BlazePoseMulti`.
+
+Shape glossary: ``B`` images, ``N`` people in an image, ``J`` joints (17).
 """
 
 from __future__ import annotations
@@ -22,25 +27,87 @@ import numpy as np
 
 from rmpl.skeleton import BLAZEPOSE33, COCO17, Skeleton, conversion_matrix
 
-__all__ = ["Detector", "MediaPipeDetector", "DETECTORS", "zero_outside", "as_image_list"]
+__all__ = [
+    "Detector",
+    "MultiPersonDetector",
+    "MediaPipeDetector",
+    "DETECTORS",
+    "max_people",
+    "with_people_axis",
+    "zero_outside",
+    "as_image_list",
+]
 
 Images = np.ndarray | Sequence[np.ndarray]
 
 
 @runtime_checkable
 class Detector(Protocol):
-    """A single-person 2D keypoint detector.
+    """A 2D keypoint detector.
 
     ``__call__(images)`` takes RGB uint8 images, shape (B, H, W, 3) or a sequence of
-    (H_i, W_i, 3) arrays of any sizes, and returns ``(keypoints, scores)``: pixels, shape
-    (B, J, 2), and confidences in [0, 1], shape (B, J), in ``skeleton``'s joint order.
-    Missing joints are NaN with score 0; joints outside the image have score 0.
+    (H_i, W_i, 3) arrays of any sizes, and returns ``(keypoints, scores)`` in ``skeleton``'s
+    joint order: pixels and confidences in [0, 1]. A single-person detector returns shapes
+    (B, J, 2) and (B, J); a detector with an integer attribute ``max_people``
+    (:class:`MultiPersonDetector`) returns (B, N, J, 2) and (B, N, J) with
+    N <= ``max_people``, an empty slot being NaN with score 0. Missing joints are NaN with
+    score 0; joints outside the image have score 0.
     """
 
     name: str
     skeleton: Skeleton
 
     def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@runtime_checkable
+class MultiPersonDetector(Detector, Protocol):
+    """A :class:`Detector` with a people axis: (B, N, J, 2) keypoints, (B, N, J) scores.
+
+    It may follow people from image to image (the images of a call, and of the calls that
+    follow, are then consecutive frames of one video, and a person keeps its slot ``n``);
+    :meth:`reset` starts a new video. Callers reset before each video.
+    """
+
+    max_people: int
+
+    def reset(self) -> None: ...
+
+
+def max_people(detector: Detector) -> int:
+    """People per image the detector can return: its ``max_people``, else 1."""
+    return int(getattr(detector, "max_people", 1))
+
+
+def with_people_axis(
+    detector: Detector, keypoints: np.ndarray, scores: np.ndarray, num_images: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """A detector's output as (B, N, J, 2) keypoints and (B, N, J) scores, checked.
+
+    A single-person detector's (B, J, 2) and (B, J) get N = 1.
+
+    Raises:
+        ValueError: shapes that are not the detector's protocol (a programming error in the
+            detector, named in the message).
+    """
+    keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
+    J, N = detector.skeleton.num_joints, max_people(detector)
+    if N == 1 and keypoints.ndim == 3:
+        keypoints, scores = keypoints[:, None], scores[:, None]
+    ok = (
+        keypoints.ndim == 4
+        and keypoints.shape[0] == num_images
+        and keypoints.shape[1] <= N
+        and keypoints.shape[2:] == (J, 2)
+        and scores.shape == keypoints.shape[:3]
+    )
+    if not ok:
+        want = f"({num_images}, N <= {N}, {J}, 2) and ({num_images}, N, {J})"
+        raise ValueError(
+            f"detector {getattr(detector, 'name', detector)!r} returned keypoints "
+            f"{keypoints.shape} and scores {scores.shape}; expected {want}"
+        )
+    return keypoints, scores
 
 
 def as_image_list(images: Images) -> list[np.ndarray]:
