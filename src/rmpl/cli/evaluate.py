@@ -82,7 +82,9 @@ def _add_method_options(parser: argparse.ArgumentParser) -> None:
         "--methods",
         default="triangulate,robust,rmpl",
         help="comma-separated: triangulate, robust, rmpl[:MODEL]; sequence methods (tracked "
-        "over time): triangulate+filter, robust+filter, rmpl+filter, rmpl:temporal[:MODEL]",
+        "over time): triangulate+filter, robust+filter, rmpl+filter, rmpl:temporal[:MODEL]; "
+        "one view with depth from the floor, body size and time: rmpl+floor[:CUES] (CUES: "
+        "floor, size, time joined by +; default all)",
     )
     parser.add_argument(
         "--views",
@@ -97,6 +99,15 @@ def _add_method_options(parser: argparse.ArgumentParser) -> None:
         metavar="[NAME=]FILE",
         help="score finished 3D results (rmpl run's poses.npz/.json, a TRC) instead of "
         "running --methods; NAME defaults to the file's folder name",
+    )
+    parser.add_argument(
+        "--floor",
+        default=None,
+        metavar="FLOOR",
+        help="rmpl+floor (one view): the floor plane, AXIS=H (e.g. z=0: z up, floor at "
+        "z = 0) or nx,ny,nz,d (n . X = d, n up); 'estimate': from the dataset's own frames "
+        "with every camera (triangulated, no ground truth); 'convention' (default): the "
+        "rig's axis-aligned up and 0; 'none'",
     )
     parser.add_argument("--out", default=None, help="folder for the tables and plots")
 

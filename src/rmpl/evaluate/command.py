@@ -24,6 +24,8 @@ def evaluate_command(args, command: str):
     )
     _refuse_sequences(args)  # before any model is loaded
     methods = parse_methods(args.methods)
+    floor = getattr(args, "floor", None)
+    _check_floor_option(floor, methods, args.dataset)
     if args.dataset == "recording":
         return _recording(args, methods, command)
     if args.root is None:
@@ -31,6 +33,7 @@ def evaluate_command(args, command: str):
     if args.calib is not None:
         raise InputError(None, "--calib", "only with --dataset recording", args.calib)
     if args.dataset == "synthetic":
+        set_floor(methods, floor)
         return _synthetic(args, config, methods, command)
     return _benchmark(args, config, methods, command)
 
@@ -112,6 +115,11 @@ def _benchmark(args, config, methods, command: str):
     )
     if args.poses:
         return score_results(evset, load_results(args.poses), config, command)
+    note = set_floor(methods, getattr(args, "floor", None), evset)
+    if note:
+        from dataclasses import replace
+
+        evset = replace(evset, notes=(*evset.notes, note))
     if any(getattr(m, "sequence", False) for m in methods.values()):
         from dataclasses import replace
 
@@ -129,3 +137,58 @@ def _refuse_sequences(args) -> None:
     if seq and (args.dataset in ("synthetic", "recording") or args.poses):
         where = "--poses" if args.poses else f"--dataset {args.dataset}"
         raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))
+
+
+#: ``--floor`` words besides a plane (``AXIS=H`` or ``nx,ny,nz,d``).
+FLOOR_WORDS = ("convention", "estimate", "none")
+
+
+def _check_floor_option(floor: str | None, methods: dict, dataset: str) -> None:
+    """``--floor`` needs an ``rmpl+floor`` method; "estimate" needs a multi-view dataset."""
+    from rmpl.evaluate.methods import MonocularMethod
+
+    if floor is None:
+        return
+    if not any(isinstance(m, MonocularMethod) for m in methods.values()):
+        raise InputError(None, "--floor", "an rmpl+floor method in --methods", floor)
+    if floor == "estimate" and dataset in ("synthetic", "recording"):
+        raise InputError(
+            None, "--floor", "a plane (AXIS=H or nx,ny,nz,d), 'convention' or 'none' for "
+            f"--dataset {dataset} ('estimate' needs a dataset's multi-view frames)", floor,
+        )  # fmt: skip
+
+
+def set_floor(methods: dict, spec: str | None, evset=None) -> str:
+    """Give the ``rmpl+floor`` methods their floor; returns the results.md header note.
+
+    Args:
+        spec: ``--floor``: None or "convention" (the rig's convention, if it has one),
+            "none", "estimate" (from ``evset``'s own multi-view frames,
+            :func:`rmpl.evaluate.harness.multi_view_floor`) or a plane
+            (:func:`rmpl.geometry.floor.parse_floor`).
+    """
+    from rmpl.evaluate.methods import MonocularMethod
+    from rmpl.geometry.floor import parse_floor
+
+    mono = [m for m in methods.values() if isinstance(m, MonocularMethod)]
+    if not mono:
+        return ""
+    floor, rule = None, "convention"
+    if spec == "none":
+        rule, text = "none", "no floor (size prior and time only)"
+    elif spec == "estimate":
+        from rmpl.evaluate.harness import multi_view_floor
+
+        floor = multi_view_floor(evset)
+        text = floor.describe()
+    elif spec in (None, "convention"):
+        text = (
+            "the calibration convention (the cameras' up axis within 10 deg of a world "
+            "axis, the floor at 0 along it), when the rig has one"
+        )
+    else:
+        floor = parse_floor(spec)
+        text = floor.describe()
+    for m in mono:
+        m.floor, m.floor_rule = floor, rule
+    return f"rmpl+floor (one view: depth from the floor, body size and time): floor {text}"

@@ -35,7 +35,7 @@ a method, ``J`` joints. Units: metres inside, millimetres in the tables.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -47,7 +47,14 @@ from rmpl.geometry import Rig
 from rmpl.io.poses import Poses3D
 from rmpl.skeleton import convert
 
-__all__ = ["EvalConfig", "Evaluation", "evaluate", "evaluate_poses", "view_subsets"]
+__all__ = [
+    "EvalConfig",
+    "Evaluation",
+    "evaluate",
+    "evaluate_poses",
+    "multi_view_floor",
+    "view_subsets",
+]
 
 
 def view_subsets(num_views: int, spec: str) -> dict[str, list[tuple[int, ...]]]:
@@ -443,3 +450,34 @@ def evaluate_poses(
         placed = _assign(pred, frame, np.full(len(frame), -1), gts[0], ev.joints, cfg.match_gate)
         ev.preds["all", 0, name] = [placed[present[0]]]
     return ev
+
+
+def multi_view_floor(evset: EvalSet):
+    """The floor estimated from the dataset's own 2D with every camera: the people of each
+    frame associated and triangulated (DLT, joints seen by 2+ views), then
+    :func:`rmpl.pipeline.monocular.floor_from_poses` (no ground truth is used).
+
+    Returns:
+        The :class:`rmpl.geometry.floor.Floor` (one for all parts: they share a rig).
+
+    Raises:
+        InputError: parts with different rigs, or too few triangulated poses.
+    """
+    from rmpl.geometry import triangulate
+    from rmpl.inference import estimate_up
+    from rmpl.pipeline.association import AssociationConfig
+    from rmpl.pipeline.monocular import floor_from_poses
+
+    rig = evset.parts[0].rig
+    if any(not np.allclose(p.rig.centers, rig.centers) for p in evset.parts):
+        raise InputError(None, "--floor estimate", "parts that share one rig", evset.name)
+    views = tuple(range(evset.num_views))
+    points = []
+    for part in evset.parts:
+        kp, sc, _, _ = _per_person_input(part, views, evset.protocol, AssociationConfig())
+        if len(kp):
+            points.append(triangulate(kp, sc, part.rig).points)
+    if not points:
+        raise InputError(None, "--floor estimate", "people seen by 2+ cameras", "none")
+    floor = floor_from_poses(np.concatenate(points), estimate_up(rig))
+    return replace(floor, source=f"{floor.source}, triangulated from all {len(views)} cameras")

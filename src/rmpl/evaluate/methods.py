@@ -3,6 +3,12 @@
 A method maps per-person multi-view keypoints ``(N, V, J, 2)`` pixels + scores ``(N, V, J)``
 and a rig of ``V`` cameras to COCO-17 joints ``(N, J, 3)`` metres, NaN where it gives no
 estimate. A new method plugs in as one entry of :data:`METHODS`.
+
+``rmpl+floor[:CUES]`` (:class:`MonocularMethod`) is the single-view lifting of
+:mod:`rmpl.pipeline.monocular`: the shipped lifter, then depth from the floor, the body-size
+prior and (with "time") whole tracks; CUES is any of floor, size, time joined by + (default
+all three). With two or more views it is exactly ``rmpl``. Its floor is set by ``rmpl
+evaluate --floor`` (:attr:`MonocularMethod.floor`).
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from rmpl.errors import InputError
 from rmpl.geometry import Rig, triangulate, triangulate_robust
 from rmpl.skeleton import COCO17
 
-__all__ = ["METHODS", "Method", "make_method", "parse_methods"]
+__all__ = ["METHODS", "Method", "MonocularMethod", "make_method", "parse_methods"]
 
 Method = Callable[[np.ndarray, np.ndarray, Rig], np.ndarray]
 
@@ -45,6 +51,94 @@ def _rmpl(spec: str) -> Method:
     return run
 
 
+class MonocularMethod:
+    """``rmpl+floor[:CUES]``: one view lifted with depth cues; ``rmpl`` with more views.
+
+    With the "time" cue it is a sequence method (``sequence`` is True): the harness passes
+    every person of a stretch of frames, which are tracked as ``rmpl run`` does
+    (:func:`rmpl.pipeline.monocular.lift_stretch`). Called per frame (``fn(kp, sc, rig)``,
+    as the synthetic scenes do), it uses the floor and size cues only.
+
+    Attributes:
+        floor: the :class:`rmpl.geometry.floor.Floor`, or None: the calibration convention
+            of the rig (:func:`rmpl.geometry.floor.convention_floor`) if it has one.
+        floor_rule: "convention" (None means the rig's convention) or "none" (no floor).
+    """
+
+    def __init__(self, cues: str = "") -> None:
+        from rmpl.inference import Lifter
+        from rmpl.pipeline.monocular import MonocularConfig
+
+        self.config = MonocularConfig.from_cues(cues) if cues else MonocularConfig()
+        self.floor = None
+        self.floor_rule = "convention"
+        self._lifter = Lifter.from_pretrained("default")
+
+    @property
+    def sequence(self) -> bool:
+        return "time" in self.config.cues
+
+    def _floor(self, rig: Rig):
+        from rmpl.geometry.floor import check_floor, convention_floor
+        from rmpl.inference import estimate_up
+
+        if self.floor is not None:
+            return check_floor(self.floor, rig.centers)
+        if self.floor_rule == "none":
+            return None
+        return convention_floor(estimate_up(rig), rig.centers)
+
+    def _lift_fn(self, up):
+        lifter = self._lifter
+
+        def fn(kp, sc, rig):
+            r = lifter.lift(kp, sc, rig, up=up)
+            return r.points, r.num_views
+
+        return fn
+
+    def __call__(self, kp, sc, *rest):
+        """``(kp, sc, rig)`` per frame, or the sequence signature of
+        :class:`rmpl.evaluate.sequences.SequenceMethod`."""
+        from dataclasses import replace
+
+        from rmpl.pipeline.monocular import lift_stretch, monocular_people
+
+        if len(rest) == 1:  # per frame
+            rig = rest[0]
+            empty = np.full((*kp.shape[:-3], kp.shape[-2], 3), np.nan)
+            if not ((sc > 0) & np.isfinite(kp).all(-1)).any():
+                return empty
+            if len(rig) > 1:
+                return self._lifter.lift(kp, sc, rig).points
+            floor = self._floor(rig)
+            up = None if floor is None else floor.n
+            cfg = replace(self.config, cues=tuple(c for c in self.config.cues if c != "time"))
+            frame = np.arange(len(kp))
+            res = monocular_people(kp, sc, frame, len(kp), rig, None, floor, cfg,
+                                   lift=self._lift_fn(up))  # fmt: skip
+            return res.points[:, 0]
+        frame, num_frames, rig, fps = rest[:4]
+        if len(rig) > 1:  # every view: the plain lifter, per frame
+            return self._lifter.lift(kp, sc, rig).points, frame
+        from rmpl.evaluate.sequences import stretches
+
+        floor = self._floor(rig)
+        up = None if floor is None else floor.n
+        preds, at = [np.zeros((0, kp.shape[-2], 3))], [np.zeros(0, int)]
+        fn = self._lift_fn(up)
+        for a, b, step in stretches(num_frames, *rest[4:6]):
+            rows = (frame >= a) & (frame < b)
+            if rows.any():
+                p, t = lift_stretch(
+                    kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step, floor,
+                    self.config, lift=fn,
+                )  # fmt: skip
+                preds.append(p)
+                at.append(t + a)
+        return np.concatenate(preds), np.concatenate(at)
+
+
 METHODS: dict[str, Callable[[str], Method]] = {
     "triangulate": lambda _: _nan_if_too_few_views(
         lambda kp, sc, rig: triangulate(kp, sc, rig).points
@@ -53,6 +147,7 @@ METHODS: dict[str, Callable[[str], Method]] = {
         lambda kp, sc, rig: triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs).points
     ),
     "rmpl": _rmpl,
+    "rmpl+floor": MonocularMethod,
 }
 
 
