@@ -92,7 +92,7 @@ def run(root, models, fps, view_counts):
                     r = lifter.lift_track(kp, sc, rig, fps=fps)
                     pts = r.points.copy()
                     per[m].append(pts)
-                    sig[m].append(r.sigma)
+                    sig[m].append(np.stack([r.radius(0.5), r.radius(0.9)], -1))
                 gts.append(np.where(has[:, None, None], gt[:, p], np.nan))
             cat = {n: np.concatenate(v)[:, list(KP_STAR)] for n, v in per.items()}
             g = np.concatenate(gts)[:, list(KP_STAR)]
@@ -108,11 +108,11 @@ def run(root, models, fps, view_counts):
                 row[f"{n} hard, filled"] = np.mean(e[filled]) * 1000 if filled.any() else np.nan
                 row[f"{n} pck150"] = np.mean(np.nan_to_num(e[scored], nan=9) < 0.15) * 100
             for m in temporal:
-                s = np.concatenate(sig[m])[:, list(KP_STAR)]
+                s = np.concatenate(sig[m])[:, list(KP_STAR)]  # (T, 12, 2) the 50% / 90% radii
                 e = err[m]
-                ok = scored & np.isfinite(e) & np.isfinite(s)
-                row[f"{m} cover50"] = np.mean(e[ok] < 1.5382 * s[ok]) * 100
-                row[f"{m} cover90"] = np.mean(e[ok] < 2.5003 * s[ok]) * 100
+                ok = scored & np.isfinite(e) & np.isfinite(s).all(-1)
+                row[f"{m} cover50"] = np.mean(e[ok] < s[ok][:, 0]) * 100
+                row[f"{m} cover90"] = np.mean(e[ok] < s[ok][:, 1]) * 100
             row["n hard"] = int(hard.sum())
             row["n hard, filled"] = int(filled.sum())
             for key, v in row.items():

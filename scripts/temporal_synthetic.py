@@ -4,7 +4,8 @@ Usage: python scripts/temporal_synthetic.py SEQBANK MODEL [MODEL ...] [--windows
 Prints per view count: KP* MPJPE (mm) of each temporal model and of its per-frame model
 alone, over the frames with any keypoint; on the joints fewer than two views see; the DLT of
 the same windows after rmpl run's filters (triangulate+filter, identity known); and the share
-of errors inside the predicted 50% / 90% radii.
+of errors inside the predicted 50% / 90% radii (with the checkpoint's per-view-count
+calibration when it has one).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import torch
 
 from rmpl.data.sequences import SequenceBank, SequenceSource
 from rmpl.geometry.triangulate import _dlt
-from rmpl.model.temporal import RADIUS_50, RADIUS_90
+from rmpl.inference_temporal import RadiusCalibration, TrackResult
 from rmpl.pipeline.runner import RunConfig, smooth
 from rmpl.skeleton import KP_STAR
 from rmpl.training.temporal import load_temporal
@@ -64,7 +65,9 @@ def main() -> None:
     a = ap.parse_args()
     torch.set_num_threads(2)
     _, val = SequenceBank.load(a.bank).split(["03"])
-    models = {m: load_temporal(m)[0] for m in a.models}
+    loaded = {m: load_temporal(m) for m in a.models}
+    models = {m: x[0] for m, x in loaded.items()}
+    calib = {m: RadiusCalibration.from_meta(x[1]) for m, x in loaded.items()}
     for m in models.values():
         if m.config.frozen_encoder:  # a fine-tuned per-frame model runs in torch
             m.use_onnx()
@@ -86,9 +89,10 @@ def main() -> None:
                 frame = m.encode_frames(rays, scores)[0]
             e = np.linalg.norm(points.numpy() - b.target, axis=-1)[..., kp]
             ef = np.linalg.norm(frame.numpy() - b.target, axis=-1)[..., kp]
-            r = sigma.numpy()[..., kp]
+            res = TrackResult(points.numpy(), sigma.numpy(), (b.scores > 0).sum(2), calib[name])
+            r50, r90 = res.radius(0.5)[..., kp], res.radius(0.9)[..., kp]
             ok = np.isfinite(e)
-            c50, c90 = np.mean(e[ok] < RADIUS_50 * r[ok]), np.mean(e[ok] < RADIUS_90 * r[ok])
+            c50, c90 = np.mean(e[ok] < r50[ok]), np.mean(e[ok] < r90[ok])
             print(f"  {name}: temporal common {e[common].mean() * 1000:7.1f}  all "
                   f"{e[seen].mean() * 1000:7.1f}  hard "
                   f"{e[hard].mean() * 1000:7.1f}  missing frames {e[~seen].mean() * 1000:7.1f} | "

@@ -28,6 +28,7 @@ from rmpl.inference import PRETRAINED, estimate_up, rotation_to_z
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
 
 __all__ = [
+    "RadiusCalibration",
     "TemporalLifter",
     "TrackResult",
     "frame_times",
@@ -52,26 +53,81 @@ def is_temporal_checkpoint(name_or_path: str | Path) -> bool:
     return isinstance(meta, dict) and meta.get("format") == "rmpl-temporal-checkpoint-1"
 
 
+@dataclass(frozen=True)
+class RadiusCalibration:
+    """Error radii from the model's scale, per number of views that see the joint.
+
+    The network predicts one scale ``sigma`` per joint. How far its errors spread around that
+    scale depends on how many views saw the joint (a joint no view sees is interpolated in
+    time; one seen by five views is pinned by its rays), so the radius that holds half (nine
+    tenths) of the errors is ``r50[k] * sigma`` (``r90[k] * sigma``), with ``k`` the number of
+    views seeing the joint in that frame, the last entry serving every larger ``k``. The
+    factors are quantiles of error / sigma on held-out windows
+    (:func:`rmpl.training.temporal.fit_radius_calibration`), stored in the checkpoint's
+    ``config.json`` under ``"calibration"``.
+    """
+
+    r50: tuple[float, ...]
+    r90: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        a, b = np.asarray(self.r50, float), np.asarray(self.r90, float)
+        if a.ndim != 1 or a.shape != b.shape or not len(a):
+            raise ValueError("r50 and r90 must be non-empty lists of equal length")
+        if not (np.isfinite(a).all() and np.isfinite(b).all() and (a > 0).all() and (b >= a).all()):
+            raise ValueError("radius factors must be finite, > 0, with r90 >= r50")
+
+    @classmethod
+    def from_meta(cls, meta: dict, path: Path | None = None) -> RadiusCalibration | None:
+        """The ``"calibration"`` entry of a checkpoint's config (None when it has none)."""
+        c = meta.get("calibration")
+        if c is None:
+            return None
+        try:
+            return cls(tuple(map(float, c["r50"])), tuple(map(float, c["r90"])))
+        except (TypeError, KeyError, ValueError) as e:
+            raise InputError(
+                path, "calibration", "r50 and r90: equal-length lists of radius factors > 0", e
+            ) from None
+
+    def to_meta(self) -> dict:
+        return {
+            "r50": list(self.r50),
+            "r90": list(self.r90),
+            "views": "entry k: joints seen by k views; the last entry: k or more",
+        }
+
+    def radius(self, sigma: np.ndarray, num_views: np.ndarray, level: float) -> np.ndarray:
+        """The ``level`` (0.5 or 0.9) radius, same shape as ``sigma`` (metres)."""
+        f = np.asarray(self.r50 if level == 0.5 else self.r90)
+        k = np.clip(np.asarray(num_views), 0, len(f) - 1)
+        return sigma * f[k]
+
+
 @dataclass
 class TrackResult:
     """One lifted track.
 
     Attributes:
         points: (T, J, 3) world metres; NaN where no window saw the person.
-        sigma: (T, J) metres, the scale of each joint's error: it is below
-            ``RADIUS_50 * sigma`` (:meth:`radius`) half of the time, below ``RADIUS_90 * sigma``
-            nine times in ten (calibrated on held-out synthetic windows).
+        sigma: (T, J) metres, the network's scale of each joint's error. :meth:`radius`
+            turns it into the radius that holds half (or nine tenths) of the errors.
         num_views: (T, J) number of views that saw each joint.
+        calibration: the checkpoint's per-view-count radius factors; None: the chi
+            distribution's (``RADIUS_50``, ``RADIUS_90``) for every joint.
     """
 
     points: np.ndarray
     sigma: np.ndarray
     num_views: np.ndarray
+    calibration: RadiusCalibration | None = None
 
     def radius(self, level: float = 0.5) -> np.ndarray:
         """The predicted error radius (T, J) at ``level`` 0.5 or 0.9, metres."""
         if level not in (0.5, 0.9):
             raise ValueError(f"level must be 0.5 or 0.9, got {level}")
+        if self.calibration is not None:
+            return self.calibration.radius(self.sigma, self.num_views, level)
         return self.sigma * (RADIUS_50 if level == 0.5 else RADIUS_90)
 
 
@@ -120,6 +176,7 @@ class TemporalLifter:
     def __init__(self, model: TemporalRMPL, meta: dict | None = None, onnx: bool = True) -> None:
         self.model = model.eval()
         self.meta = meta or {}
+        self.calibration = RadiusCalibration.from_meta(self.meta)
         if onnx and self.model.fast_encoder is None:
             try:
                 self.model.use_onnx()
@@ -137,6 +194,7 @@ class TemporalLifter:
                 path, None, "a temporal checkpoint (config.json + model.safetensors) or 'temporal'"
             )
         model, meta = load_temporal(path)
+        RadiusCalibration.from_meta(meta, path / "config.json")  # a damaged entry: one error
         return cls(model, meta)
 
     @property
@@ -202,7 +260,7 @@ class TemporalLifter:
         if len(seen):
             outside[seen[0] : seen[-1] + 1] = False
         points[outside], sigma[outside] = np.nan, np.nan
-        return TrackResult(points, sigma, (s > 0).sum(1))
+        return TrackResult(points, sigma, (s > 0).sum(1), self.calibration)
 
     def _windows(self, rays, s, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:
         """Overlapping windows, ``batch`` at a time: each group's frames are encoded by the

@@ -250,6 +250,50 @@ def test_damaged_or_wrong_temporal_checkpoints_are_one_clear_error(setup, tmp_pa
         tt.load_temporal(bad)
     with pytest.raises(InputError, match="config.json"):
         TemporalLifter.from_pretrained(tmp_path / "nowhere")
+    damaged = tmp_path / "damaged_calibration"
+    shutil.copytree(d / "full", damaged)
+    meta = json.loads((damaged / "config.json").read_text())
+    meta["calibration"] = {"r50": [1.0, 2.0], "r90": [0.5]}
+    (damaged / "config.json").write_text(json.dumps(meta))
+    with pytest.raises(InputError, match="calibration"):
+        TemporalLifter.from_pretrained(damaged)
+
+
+def test_training_writes_a_per_view_count_radius_calibration(setup):
+    """The checkpoint carries radius factors per number of views; the lifter uses them."""
+    d, _ = setup
+    lifter = TemporalLifter.from_pretrained(d / "full")
+    c = lifter.calibration
+    assert c is not None and len(c.r50) == len(c.r90) == 6
+    assert all(b >= a > 0 for a, b in zip(c.r50, c.r90, strict=True))
+    kp, sc, rig, _ = _track(T=12)
+    r = lifter.lift_track(kp, sc, rig, fps=30)
+    k = np.clip(r.num_views, 0, 5)
+    assert np.allclose(r.radius(0.5), r.sigma * np.asarray(c.r50)[k])
+    assert np.allclose(r.radius(0.9), r.sigma * np.asarray(c.r90)[k])
+
+
+def test_radius_calibration_by_view_count():
+    """Hand-computed: each joint's radius is its scale times its view count's factor."""
+    from rmpl.inference_temporal import RadiusCalibration, TrackResult
+
+    c = RadiusCalibration(r50=(1.0, 2.0, 3.0), r90=(2.0, 4.0, 5.0))
+    sigma = np.array([[0.1, 0.1, 0.1, 0.2]])
+    views = np.array([[0, 1, 2, 7]])  # 7 views: the last factor
+    r = TrackResult(np.zeros((1, 4, 3)), sigma, views, c)
+    assert np.allclose(r.radius(0.5), [[0.1, 0.2, 0.3, 0.6]])
+    assert np.allclose(r.radius(0.9), [[0.2, 0.4, 0.5, 1.0]])
+    plain = TrackResult(np.zeros((1, 4, 3)), sigma, views)  # no calibration: chi quantiles
+    assert np.allclose(plain.radius(0.5), 1.5382 * sigma)
+    for bad in [
+        dict(r50=(1.0,), r90=(0.5,)),
+        dict(r50=(), r90=()),
+        dict(r50=(np.nan,), r90=(1.0,)),
+    ]:
+        with pytest.raises(ValueError):
+            RadiusCalibration(**bad)
+    with pytest.raises(ValueError, match="too few"):
+        tt.radius_quantiles(np.ones(10), np.ones(10), np.zeros(10, int))
 
 
 def test_the_shipped_temporal_model_lifts_the_embedded_walk():

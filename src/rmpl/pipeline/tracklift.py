@@ -75,16 +75,17 @@ def lift_tracks(
         up: world up axis (3,), or None to estimate it from the rig.
 
     Returns:
-        points (T, P, J, 3) metres, sigma (T, P, J) metres, views (T, P, J) int; NaN / 0
+        points (T, P, J, 3) metres, radius (T, P, J) metres (the predicted 50% error radius,
+        :meth:`~rmpl.inference_temporal.TrackResult.radius`), views (T, P, J) int; NaN / 0
         outside each track's pieces.
     """
     T, P, V, J, _ = keypoints.shape
     points = np.full((T, P, J, 3), np.nan)
-    sigma = np.full((T, P, J), np.nan)
+    radius = np.full((T, P, J), np.nan)
     present = (scores > 0).any((2, 3))  # (T, P)
     for p in range(P):
         for a, b in pieces(present[:, p], max_gap):
             r = lifter.lift_track(keypoints[a:b, p], scores[a:b, p], rig, fps=fps, up=up)
-            points[a:b, p], sigma[a:b, p] = r.points, r.sigma
+            points[a:b, p], radius[a:b, p] = r.points, r.radius(0.5)
     views = (scores > 0).sum(2)
-    return points, sigma, views
+    return points, radius, views

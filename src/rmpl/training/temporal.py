@@ -29,6 +29,7 @@ from rmpl.skeleton import COCO17, KP_STAR
 
 __all__ = [
     "TemporalTrainConfig",
+    "fit_radius_calibration",
     "fit_sigma_scale",
     "load_temporal",
     "save_temporal",
@@ -250,6 +251,57 @@ def fit_sigma_scale(model: TemporalRMPL, sets: dict) -> float:
     return float(np.median(r[np.isfinite(r)]) / RADIUS_50)
 
 
+def radius_quantiles(
+    errors: np.ndarray, sigma: np.ndarray, num_views: np.ndarray, max_views: int = 5,
+    min_count: int = 200,
+):  # fmt: skip
+    """Per number of views k = 0..max_views (the last: k or more), the 50% and 90% quantiles
+    of ``errors / sigma`` (any matching shapes; non-finite entries are left out). A group
+    with fewer than ``min_count`` joints takes the pooled quantiles.
+
+    Returns:
+        a :class:`rmpl.inference_temporal.RadiusCalibration`.
+
+    >>> e = np.array([1.0, 2, 3, 4, 10, 20, 30, 40]); s = np.ones(8)
+    >>> c = radius_quantiles(e, s, np.array([0, 0, 0, 0, 2, 2, 2, 2]), 2, min_count=4)
+    >>> c.r50, c.r90
+    ((2.5, 7.0, 25.0), (3.7, 33.0, 37.0))
+    """
+    from rmpl.inference_temporal import RadiusCalibration
+
+    ratio = np.asarray(errors, float) / np.asarray(sigma, float)
+    k = np.clip(np.asarray(num_views), 0, max_views)
+    ok = np.isfinite(ratio) & (np.asarray(sigma) > 0)
+    if ok.sum() < min_count:
+        raise ValueError(f"{int(ok.sum())} finite errors: too few to calibrate (< {min_count})")
+    pooled = np.quantile(ratio[ok], [0.5, 0.9])
+    r50, r90 = [], []
+    for v in range(max_views + 1):
+        group = ratio[ok & (k == v)]
+        q = np.quantile(group, [0.5, 0.9]) if len(group) >= min_count else pooled
+        r50.append(round(float(q[0]), 4))
+        r90.append(round(float(max(q[1], q[0])), 4))
+    return RadiusCalibration(tuple(r50), tuple(r90))
+
+
+@torch.no_grad()
+def fit_radius_calibration(model: TemporalRMPL, sets: dict, min_views: int = 2):
+    """:func:`radius_quantiles` of the model on held-out windows (``sets``: view count ->
+    batch), from the sets with at least ``min_views`` views: one-view rigs have their own
+    error scale and are not what the temporal model serves."""
+    model.eval()
+    err, sig, views = [], [], []
+    for v, b in sets.items():
+        if v < min_views:
+            continue
+        rays, scores, times, target = _tensors(b)
+        points, sigma = model(rays, scores, times)
+        err.append((points - target).norm(dim=-1).flatten().numpy())
+        sig.append(sigma.flatten().numpy())
+        views.append((b.scores > 0).sum(2).flatten())
+    return radius_quantiles(np.concatenate(err), np.concatenate(sig), np.concatenate(views))
+
+
 def _lr_at(step: int, cfg: TemporalTrainConfig) -> float:
     warmup = min(200, cfg.steps // 20)
     f = min(1.0, (step + 1) / max(warmup, 1))
@@ -380,6 +432,7 @@ def _checkpoint(run: _Run, sets: dict, summary: dict, bar) -> None:
     model = run.model  # trains with sigma_scale = 1; the saved model carries the calibration
     scale = fit_sigma_scale(model, sets)
     model.config = model.config.with_(sigma_scale=scale)
+    calibration = fit_radius_calibration(model, sets)
     metrics = evaluate_windows(model, sets)
     record = {
         "step": run.step,
@@ -396,7 +449,8 @@ def _checkpoint(run: _Run, sets: dict, summary: dict, bar) -> None:
             if k.startswith(("kpstar", "frame_kp", "hard"))
         )
     )
-    save_temporal(model, run.out, {"training": {**summary, "last": record}})
+    extra = {"training": {**summary, "last": record}, "calibration": calibration.to_meta()}
+    save_temporal(model, run.out, extra)
     model.config = model.config.with_(sigma_scale=1.0)
     _write_log(run.out, record)
     run.save_state()
