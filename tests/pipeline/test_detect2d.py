@@ -336,3 +336,117 @@ def test_run_on_rendered_videos_with_mediapipe(tmp_path, method):
     assert np.isfinite(err).mean() > 0.9
     print(f"\n{method}: MPJPE {np.nanmean(err):.3f} m, per joint {np.nanmean(err, 0).round(3)}")
     assert np.nanmean(err) < MAX_MPJPE, np.nanmean(err, axis=0).round(3)
+
+
+# --------------------------------------------------------------------------- people axis
+
+
+class PeopleDetector:
+    """A stand-in multi-person Detector: image brightness b says how many people are in it
+    (b // 40, at most ``max_people``); person n has every joint at x = 10 n + b / 100.
+    Counts its resets and images."""
+
+    name = "people"
+    skeleton = COCO17
+
+    def __init__(self, max_people: int = 3) -> None:
+        self.max_people = max_people
+        self.images = self.resets = 0
+
+    def reset(self) -> None:
+        self.resets += 1
+
+    def __call__(self, images):
+        self.images += len(images)
+        B, N = len(images), self.max_people
+        kp, sc = np.full((B, N, 17, 2), np.nan), np.zeros((B, N, 17))
+        for b, im in enumerate(images):
+            for n in range(min(int(im.mean() // 40), N)):
+                kp[b, n] = [10 * n + im.mean() / 100, 5.0]
+                sc[b, n] = 0.8
+        return kp, sc
+
+
+def _grey(levels: list[int]) -> list[np.ndarray]:
+    return [np.full((64, 96, 3), g, np.uint8) for g in levels]
+
+
+def test_single_and_multi_person_detectors_share_the_path(tmp_path):
+    # View 0: 1, 2 then 1 people; view 1: nobody, 1, 1.
+    paths = [
+        write_video(tmp_path / "a.mp4", _grey([50, 90, 50])),
+        write_video(tmp_path / "b.mp4", _grey([10, 50, 60])),
+    ]
+    multi = PeopleDetector(max_people=4)
+    kp = detect_videos(paths, multi, batch=2, progress=False)
+    # Four slots, only two ever used: trimmed to P = 2.
+    assert kp.keypoints.shape == (3, 2, 2, 17, 2) and kp.scores.shape == (3, 2, 2, 17)
+    people = (kp.scores > 0).any(-1).sum(-1)  # (T, V)
+    assert people.tolist() == [[1, 0], [2, 1], [1, 1]]
+    assert np.isnan(kp.keypoints[0, 1]).all() and (kp.scores[0, 1] == 0).all()
+    assert multi.resets == 2  # once per view: frames of one view are one video
+    single = CountingDetector()
+    one = detect_videos(paths, single, batch=2, progress=False)
+    assert one.keypoints.shape == (3, 2, 1, 17, 2)
+
+
+def test_cache_keeps_single_and_multi_person_results_apart(tmp_path):
+    paths = [write_video(tmp_path / f"c{v}.mp4", _grey([90, 90])) for v in range(2)]
+    cache = tmp_path / "cache"
+    multi = PeopleDetector(max_people=3)
+    kp = detect_videos(paths, multi, cache_dir=cache, progress=False)
+    assert kp.keypoints.shape[2] == 2 and multi.images == 4
+    detect_videos(paths, multi, cache_dir=cache, progress=False)
+    assert multi.images == 4  # reused
+    # A detector of the same name with one person per image does not read that cache.
+    single = PeopleDetector(max_people=1)
+    one = detect_videos(paths, single, cache_dir=cache, progress=False)
+    assert single.images == 4 and one.keypoints.shape[2] == 1
+    # Nor does the multi-person one read the single-person cache that replaced it.
+    again = detect_videos(paths, PeopleDetector(max_people=3), cache_dir=cache, progress=False)
+    assert again.keypoints.shape[2] == 2
+
+
+def test_a_view_with_nobody_is_named_and_nobody_anywhere_is_an_error(tmp_path, caplog):
+    full = write_video(tmp_path / "full.mp4", _grey([90, 90, 90]))
+    empty = write_video(tmp_path / "empty.mp4", _grey([10, 10, 10]))
+    with caplog.at_level("WARNING", logger="rmpl.pipeline.detect2d"):
+        kp = detect_videos([full, empty], PeopleDetector(), progress=False)
+    assert "nobody was detected in any of the 3 frames of" in caplog.text
+    assert "empty.mp4" in caplog.text and "full.mp4" not in caplog.text
+    assert (kp.scores[:, 1] == 0).all() and (kp.scores[:, 0] > 0).any()
+    other = write_video(tmp_path / "other.mp4", _grey([20, 20, 20]))
+    with pytest.raises(InputError, match=r"empty\.mp4, .*other\.mp4.*at least one person"):
+        detect_videos([empty, other], PeopleDetector(), progress=False)
+
+
+def test_videos_of_different_lengths_fail_before_a_multi_person_detector_runs(tmp_path):
+    a = write_video(tmp_path / "a.mp4", _grey([90] * 5))
+    short = write_video(tmp_path / "short.mp4", _grey([90] * 3))
+    det = PeopleDetector()
+    with pytest.raises(InputError, match=r"short\.mp4.*5 frames.*got 3 frames"):
+        detect_videos([a, short], det, progress=False)
+    assert det.images == 0
+
+
+def test_a_detector_breaking_the_protocol_is_named(tmp_path):
+    class Broken(PeopleDetector):
+        name = "broken"
+
+        def __call__(self, images):
+            kp, sc = super().__call__(images)
+            return kp[:, :, :5], sc[:, :, :5]  # 5 joints, not 17
+
+    paths = [write_video(tmp_path / "a.mp4", _grey([90, 90]))]
+    with pytest.raises(ValueError, match=r"detector 'broken' returned keypoints \(2, 3, 5, 2\)"):
+        detect_videos(paths, Broken(), progress=False)
+
+
+def test_registry_names_and_default(tmp_path):
+    from rmpl.pipeline.detect2d import DEFAULT_DETECTOR, DETECTORS
+
+    assert DEFAULT_DETECTOR in DETECTORS
+    assert {"mediapipe", "blazepose-multi", "blazepose-multi-static"} <= set(DETECTORS)
+    video = write_video(tmp_path / "a.mp4", _grey([90]))
+    with pytest.raises(ValueError, match="detector must be one of"):
+        detect_videos([video], "nope", progress=False)
