@@ -157,8 +157,9 @@ def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: in
         raise InputError(
             None,
             "points",
-            f"a track whose {' and '.join(lacking)} are seen (both ends present) in at least "
-            f"{min_frames} frames, for a height",
+            f"a track in which the {', '.join(lacking)} (both ends) "
+            f"{'is' if len(lacking) == 1 else 'are'} seen in at least {min_frames} frames, "
+            "for a height",
             f"frames per bone: {seen}",
         )
     return sum(float(np.mean(v)) for v in segment.values()) / CHAIN_FRACTION

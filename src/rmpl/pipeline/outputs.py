@@ -1,9 +1,15 @@
-"""The files of a run folder: exports, the viewer, pictures and overlays, changing as one set.
+"""The files of a run folder: exports, the run report, the viewer, pictures and overlays,
+changing as one set.
 
-:func:`write_all` writes every requested export of a :class:`rmpl.io.poses.Poses3D` (NPZ,
-JSON, TRC, C3D, BVH), the viewer page, the pictures and the overlays into a staging folder
-and commits them together (:func:`rmpl.io.atomic.staged_folder`); ``rmpl run`` and
-``rmpl example`` call it.
+:func:`write_all` checks the views and builds the run report
+(:func:`rmpl.pipeline.report.build_report`: each person's height and the per-view status go
+into the poses), writes every requested export of the :class:`rmpl.io.poses.Poses3D` (NPZ,
+JSON, TRC, C3D, BVH), ``report.md`` and ``report.json``, the viewer page, the pictures and
+the overlays into a staging folder and commits them together
+(:func:`rmpl.io.atomic.staged_folder`); ``rmpl run`` and ``rmpl example`` call it. It
+returns the :class:`~rmpl.pipeline.report.RunReport`, whose ``exit_code`` is the command's
+status: 0, or 3 when a person's views disagree in most frames (a blend of different people;
+the outputs are still written, :mod:`rmpl.pipeline.consistency`).
 """
 
 from __future__ import annotations
@@ -18,6 +24,16 @@ __all__ = ["FORMATS", "write_all", "write_input_overlays"]
 log = logging.getLogger(__name__)
 
 FORMATS = ("npz", "json", "trc", "c3d", "bvh")
+# The (T, P, ...) fields of Poses3D, sliced per person.
+_PER_PERSON = (
+    "scores",
+    "flags",
+    "num_views",
+    "uncertainty",
+    "membership",
+    "views_excluded",
+    "view_status",
+)
 
 
 def write_input_overlays(sources: list[str], kind: str, poses, inputs, out: Path) -> list[Path]:
@@ -55,8 +71,9 @@ def _write_bvh(poses, out: Path) -> None:
             person_ids=poses.person_ids[p : p + 1],
             **{
                 k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
-                for k in ("scores", "flags", "num_views", "uncertainty")
+                for k in _PER_PERSON
             },
+            heights=None if poses.heights is None else poses.heights[p : p + 1],
         )
         name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"
         try:
@@ -65,16 +82,28 @@ def _write_bvh(poses, out: Path) -> None:
             log.warning("skipping %s: %s", name, e)
 
 
-def write_all(
-    poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None
-) -> None:
-    """Every requested export plus the viewer page, the pictures and ``overlays(folder)``,
-    committed into ``out`` as one set (:func:`rmpl.io.atomic.staged_folder`): after a failure
-    or a kill, ``out`` holds the previous complete set or this one, never a mix."""
-    from rmpl.io.atomic import staged_folder
+def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None):
+    """The run report, every requested export plus the viewer page, the pictures and
+    ``overlays(folder)``, committed into ``out`` as one set
+    (:func:`rmpl.io.atomic.staged_folder`): after a failure or a kill, ``out`` holds the
+    previous complete set or this one, never a mix.
 
+    The exports carry each person's height and the view check's per-view status
+    (:func:`rmpl.pipeline.report.build_report`). A summary is logged after the commit; a
+    person whose views disagree in most frames gets a WARNING banner.
+
+    Returns:
+        The :class:`rmpl.pipeline.report.RunReport`; its ``exit_code`` (0 or 3) is what
+        ``rmpl run`` should return.
+    """
+    from rmpl.io.atomic import staged_folder
+    from rmpl.pipeline.report import build_report, log_summary, write_report
+
+    report = build_report(poses, inputs)
+    poses = report.poses
     with staged_folder(out) as stage:
         _export(poses, stage, formats)
+        write_report(report, stage)
         ok = np.isfinite(poses.points).all(-1)
         if pictures:
             _pictures(poses, inputs, stage, ok)
@@ -87,8 +116,10 @@ def write_all(
         100 * ok.mean(),
         out,
     )
+    log_summary(report, out)
     if pictures:
         log.info("open %s in a browser to see the result", out / "viewer.html")
+    return report
 
 
 def _export(poses, out: Path, formats: list[str]) -> None:
