@@ -14,11 +14,14 @@ Definitions (all per person, frame and view):
   down, as a bounding box would. Where that centroid is behind the camera (a 3D so wrong
   that it lies beyond the camera that sees the person), the larger side of the bounding box
   of the view's own 2D is used instead.
-- **The consensus**: the largest set of views whose 2D of the person agree with each other.
-  For every pair of views with 2D, the pair's 2D is triangulated (confidence-weighted DLT)
-  and reprojected into every view; the pair is consistent when both its views lie within
-  the threshold, and its consensus is every view within the threshold. The pair with the
-  largest consensus wins (ties: the lowest mean error).
+- **The consensus**: the set of views whose 2D of the person agree with each other. For
+  every pair of views with 2D, the pair's 2D is triangulated (confidence-weighted DLT) and
+  reprojected into every view; the pair is consistent when both its views lie within the
+  threshold, and its consensus is every view within the threshold. Of the consistent pairs,
+  the one with the lowest truncated cost wins: the sum over the views with 2D of their
+  error, capped at the threshold (MSAC, Torr and Zisserman 2000). Counting views within
+  the threshold alone (RANSAC) can prefer a pair of two different people whose
+  triangulation lands between them, within the threshold of every view.
 - **A view's error**, as a fraction of ``size``: the median over joints (at least 5, with
   2D in that view) of the pixel distance between the view's 2D and the reprojection of the
   3D triangulated from the OTHER views of the consensus (leave-one-view-out). A view in a
@@ -47,8 +50,8 @@ frame is built from 2D that does not belong together. A person *fails* when it i
 in more than half of its compared frames. "Most" is counted in frames, not in views per
 frame, on purpose: in the motivating real case (``Demo_MultiPerson``, two people, a
 single-person detector, 4 cameras) the detector's choice rotates between the cameras, so in
-most frames only one camera of four shows the other person, yet the 3D is a blend in 86 of
-100 frames; a rule requiring half of the views to disagree in a frame flags 44 of them and
+most frames only one camera of four shows the other person, yet the 3D is a blend in 85 of
+100 frames; a rule requiring half of the views to disagree in a frame flags 45 of them and
 would let that run pass. ``rmpl run`` then still writes every output (so the result can be
 inspected), logs a WARNING banner naming the person, and its views and frames in
 ``report.md``, and exits with status :data:`EXIT_VIEWS_DISAGREE` (3), distinct from bad
@@ -257,10 +260,10 @@ class _Errors:
 
 
 def _consensus(err: _Errors, has2d: np.ndarray, thr: float) -> tuple[np.ndarray, np.ndarray]:
-    """The largest set of mutually agreeing views per person and frame (T, P, V) bool, and
-    (T, P) whether any pair of views could be compared at all."""
+    """The set of mutually agreeing views per person and frame (T, P, V) bool (the lowest
+    truncated cost of a consistent pair), and (T, P) whether any pair could be compared."""
     T, P, V = has2d.shape
-    best = np.full((T, P), -np.inf)
+    best = np.full((T, P), np.inf)
     consensus = np.zeros((T, P, V), bool)
     comparable = np.zeros((T, P), bool)
     for a, b in itertools.combinations(range(V), 2):
@@ -270,11 +273,10 @@ def _consensus(err: _Errors, has2d: np.ndarray, thr: float) -> tuple[np.ndarray,
         comparable |= ~np.isnan(E[..., a]) & ~np.isnan(E[..., b])
         ok = (E[..., a] <= thr) & (E[..., b] <= thr)
         inliers = (E <= thr) & ok[..., None]
-        n = inliers.sum(-1)
-        mean = np.where(inliers, E, 0.0).sum(-1) / np.maximum(n, 1)
-        key = np.where(ok, n - 0.5 * mean / thr, -np.inf)  # more views first, then less error
-        better = key > best
-        best = np.where(better, key, best)
+        capped = np.where(has2d, np.minimum(np.nan_to_num(E, nan=thr), thr), 0.0)
+        cost = np.where(ok, capped.sum(-1), np.inf)  # views not compared cost the cap
+        better = cost < best
+        best = np.where(better, cost, best)
         consensus = np.where(better[..., None], inliers, consensus)
     return consensus, comparable
 
