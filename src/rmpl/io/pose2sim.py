@@ -298,15 +298,23 @@ def _check_options(folder, stem, orientation, units, missing, formats) -> None:
         raise InputError(folder, "stem", "a stem without '_LSTM' or '_scaling'", stem)
 
 
-def trc_text(pts: np.ndarray, frames: np.ndarray, fps: float, units: str, name: str) -> str:
+def trc_text(
+    pts: np.ndarray,
+    frames: np.ndarray,
+    fps: float,
+    units: str,
+    name: str,
+    markers: tuple[str, ...] = tuple(POSE2SIM_MARKERS),
+) -> str:
     """One person's TRC file.
 
     Args:
-        pts: markers in file units and axes, shape (K, M, 3), :data:`POSE2SIM_MARKERS` order.
+        pts: markers in file units and axes, shape (K, M, 3), in the order of ``markers``.
         frames: rmpl frame numbers of the K rows, shape (K,).
         fps: frames per second.
         units: ``"m"`` or ``"mm"``, written in the header.
         name: the file name, written in the first line.
+        markers: the M marker names (default: all of :data:`POSE2SIM_MARKERS`).
     """
     K, M, _ = pts.shape
     rate = f"{fps:.12g}"
@@ -315,7 +323,7 @@ def trc_text(pts: np.ndarray, frames: np.ndarray, fps: float, units: str, name: 
         "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
         "OrigDataStartFrame\tOrigNumFrames",
         "\t".join([rate, rate, str(K), str(M), units, rate, str(int(frames[0]) + 1), str(K)]),
-        "Frame#\tTime\t" + "".join(f"{m}\t\t\t" for m in POSE2SIM_MARKERS),
+        "Frame#\tTime\t" + "".join(f"{m}\t\t\t" for m in markers),
         "\t\t" + "".join(f"X{i}\tY{i}\tZ{i}\t" for i in range(1, M + 1)),
         "",
     ]
