@@ -296,3 +296,111 @@ def test_corrupt_model_checkpoint(tmp_path, capsys, tiny_model, damage):
     assert main(args) == 2
     name = "config.json" if damage == "bad_config" else "model.safetensors"
     _one_line_error(capsys, name, "expected")
+
+
+# --------------------------------------------------------------------------- one camera
+
+
+def _one_camera_walk(tmp_path, height=2.5):
+    """The shipped example's walk (ankles ~0.1 m above z = 0) seen by one camera."""
+    from pathlib import Path
+
+    import rmpl
+
+    X = np.load(Path(rmpl.__file__).parent / "examples" / "walk" / "ground_truth.npz")["points"]
+    X = X[:, 0].astype(float)  # (60, 17, 3)
+    K = np.array([[1000.0, 0, 640], [0, 1000, 360], [0, 0, 1]])
+    R, t = look_at(np.array([5.0, 0.5, height]), np.array([0.0, 0, 1]))
+    rig = Rig((Camera(K, R, t, size=(1280, 720), name="cam"),))
+    kp = rig.project(X)  # (60, 1, 17, 2)
+    sc = np.full(kp.shape[:-1], 0.9)
+    save_rig(rig, tmp_path / "calib.toml")
+    save_keypoints(
+        Keypoints2D(kp[:, :, None], sc[:, :, None], "coco17", rig.names, np.arange(60), 30.0),
+        tmp_path / "kp.json",
+    )
+    return X
+
+
+def _root_error(poses, X) -> float:
+    root = lambda x: x[..., [11, 12], :].mean(-2)  # noqa: E731
+    return float(np.linalg.norm(root(poses.points[:, 0]) - root(X), axis=-1).mean())
+
+
+def test_run_one_camera_end_to_end_with_the_floor(tmp_path, caplog):
+    X = _one_camera_walk(tmp_path)
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    with caplog.at_level("INFO"):
+        assert main(["run", *io, "--out", str(tmp_path / "f"), "--floor", "z=0",
+                     "--no-pictures", "--formats", "npz,json"]) == 0  # fmt: skip
+    text = caplog.text
+    assert "one camera: depth along the rays comes from priors" in text
+    assert "--floor z=0" in text and "depth uncertainty" in text
+    poses = load_poses(tmp_path / "f" / "poses.npz")
+    assert poses.points.shape == (60, 1, 17, 3) and np.isfinite(poses.points).all()
+    u = poses.uncertainty
+    assert u is not None and np.isfinite(u).all() and (u > 0).all()
+    # The floor fixes where along the rays the walker is. The example's ankles rest 0.1 m
+    # above z = 0 where 0.07 is assumed: the floor at z = 0.03 is the right one, z = 0 is
+    # 3 cm off, and no floor leaves the size prior.
+    errors = {"z=0": _root_error(poses, X)}
+    for floor in ("z=0.03", "none"):
+        out = tmp_path / floor
+        with caplog.at_level("INFO"):
+            assert main(["run", *io, "--out", str(out), "--floor", floor,
+                         "--no-pictures", "--formats", "npz"]) == 0  # fmt: skip
+        errors[floor] = _root_error(load_poses(out / "poses.npz"), X)
+    assert "no floor" in caplog.text
+    assert errors["z=0.03"] < errors["z=0"] < errors["none"]
+    assert errors["z=0.03"] < 0.2
+
+
+def test_lift_one_camera_uses_the_calibration_convention(tmp_path, caplog):
+    X = _one_camera_walk(tmp_path)
+    out = tmp_path / "lifted.npz"
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    with caplog.at_level("INFO"):
+        assert main(["lift", *io, "--out", str(out)]) == 0
+    assert "calibration convention: z up" in caplog.text
+    given = tmp_path / "given.npz"
+    assert main(["lift", *io, "--out", str(given), "--floor", "z=0"]) == 0
+    assert np.array_equal(load_poses(out).points, load_poses(given).points)  # the same floor
+    assert np.isfinite(load_poses(out).points).all() and X.shape == (60, 17, 3)
+
+
+@pytest.mark.parametrize(
+    "floor, words",
+    [("z=3", ["--floor", "below the cameras"]), ("0,0,0,1", ["--floor", "plane"]),
+     ("up", ["--floor", "AXIS=H"])],
+)  # fmt: skip
+def test_run_one_camera_refuses_a_bad_floor(tmp_path, capsys, floor, words):
+    _one_camera_walk(tmp_path)
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    out = tmp_path / "res"
+    assert main(["run", *io, "--out", str(out), "--floor", floor, "--no-pictures"]) == 2
+    _one_line_error(capsys, *words)
+    assert not (out / "poses.npz").exists()
+
+
+def test_floor_from_a_multi_view_result(tmp_path, caplog):
+    X = _one_camera_walk(tmp_path)
+    from rmpl.io.poses import Poses3D, save_poses
+
+    wide = np.concatenate([X + [dx, dy, 0.0] for dx in (-1.5, 1.5) for dy in (-1.5, 1.5)])
+    save_poses(Poses3D(wide[:, None]), tmp_path / "multi.npz")
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    with caplog.at_level("INFO"):
+        assert main(["lift", *io, "--out", str(tmp_path / "o.npz"),
+                     "--floor", str(tmp_path / "multi.npz")]) == 0  # fmt: skip
+    assert "estimated from 240 ankle positions" in caplog.text
+
+
+def test_floor_is_ignored_with_several_cameras(tmp_path, tiny_model, caplog):
+    make_scene(tmp_path)
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    a, b = tmp_path / "a.npz", tmp_path / "b.npz"
+    assert main(["lift", "--model", tiny_model, *io, "--out", str(a)]) == 0
+    with caplog.at_level("WARNING"):
+        assert main(["lift", "--model", tiny_model, *io, "--out", str(b), "--floor", "z=0"]) == 0
+    assert "one camera only" in caplog.text
+    assert np.array_equal(load_poses(a).points, load_poses(b).points)

@@ -18,6 +18,15 @@ MODEL_HELP = (
     "temporal: whole tracks, needs a frame rate) or checkpoint folder"
 )
 
+#: ``--floor`` help of ``rmpl run`` and ``rmpl lift``.
+FLOOR_HELP = (
+    "one camera: the floor plane that fixes depth. AXIS=H (AXIS one of x, y, z, -x, -y, -z "
+    "pointing up; e.g. z=0: z up, floor at z = 0) or nx,ny,nz,d (the plane n . X = d, n "
+    "pointing up); or a poses file (.npz/.json/.trc) of a multi-view run of the same rig to "
+    "estimate it from; or 'none'. Default: the calibration's convention (the cameras' up "
+    "within 10 deg of a world axis, the floor at 0 along it) when it has one"
+)
+
 log = logging.getLogger(__name__)
 
 OUTPUT_SUFFIXES = (".npz", ".json", ".trc", ".c3d")
@@ -102,6 +111,81 @@ def check_cameras(rig: Rig, calib: str, method: str) -> None:
         raise InputError(calib, "cameras", "at least 2 cameras to triangulate", len(rig))
 
 
+def resolve_floor(spec: str | None, rig: Rig, up):
+    """The floor of a one-camera run (:mod:`rmpl.geometry.floor`), checked against the rig.
+
+    The floor must be right to a few centimetres: with a camera at height h looking at
+    ankles at distance D, a floor error e moves the person by about e D / h along the rays.
+
+    Args:
+        spec: ``--floor``: None (the calibration's convention, if it has one), "none", a
+            plane (:func:`rmpl.geometry.floor.parse_floor`) or an existing poses file of a
+            multi-view run of the same rig.
+        up: ``--up`` as a vector, or None.
+
+    Returns:
+        A :class:`rmpl.geometry.floor.Floor`, or None (no floor: size prior and time only).
+
+    Raises:
+        InputError: a floor that is not a plane or that lies above the camera(s).
+    """
+    from rmpl.geometry.floor import check_floor, convention_floor, parse_floor
+
+    if spec is not None and spec.strip().lower() == "none":
+        return None
+    if spec is None:
+        floor = convention_floor(rig.R, rig.centers, up)
+        if floor is None:
+            log.warning(
+                "one camera and no floor known (the calibration has no axis-aligned up with "
+                "the cameras upright and above 0): depth from body size and time only; give "
+                "--floor"
+            )
+        return floor
+    if Path(spec).is_file():
+        from rmpl.io.poses import load_poses
+        from rmpl.pipeline.monocular import floor_from_poses
+        from rmpl.skeleton import convert
+
+        poses = load_poses(spec)
+        pts = poses.points
+        if poses.skeleton != "coco17":
+            pts = convert(pts, poses.skeleton, "coco17")
+        try:
+            floor = floor_from_poses(pts, up)
+        except InputError as e:
+            raise InputError(spec, "points", e.expected, e.got) from None
+        return check_floor(floor, rig.centers, "--floor", spec)
+    return check_floor(parse_floor(spec), rig.centers)
+
+
+def one_camera(rig: Rig, method: str, model: str) -> bool:
+    """Whether a run takes the single-view path (:mod:`rmpl.pipeline.monocular`): one
+    camera, learned lifting with a per-frame model."""
+    if len(rig) != 1 or method != "rmpl":
+        return False
+    from rmpl.inference_temporal import is_temporal_checkpoint
+
+    return not is_temporal_checkpoint(model)
+
+
+def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool):
+    """``rmpl run`` / ``rmpl lift`` with one camera: the lifter, depth from the floor, body
+    size and time (:func:`rmpl.pipeline.monocular.lift_single_view`)."""
+    from rmpl.pipeline.monocular import lift_single_view
+
+    up = None if cfg.up is None else np.asarray(cfg.up, float)
+    floor = resolve_floor(floor_spec, inputs.rig, up)
+    if temporal and cfg.filter == "butterworth" and inputs.fps is not None:
+        from rmpl.pipeline.runner import check_cutoff
+
+        check_cutoff(cfg.cutoff, inputs.fps)
+    return lift_single_view(
+        inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, floor, cfg,
+        temporal=temporal,
+    )  # fmt: skip
+
+
 def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     """``rmpl lift`` / ``rmpl triangulate``: per-frame estimates, associated and tracked,
     without temporal smoothing, written to one file."""
@@ -112,9 +196,16 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     inputs = load_calibration_and_2d(args)
     check_cameras(inputs.rig, args.calib, method)
     cfg = RunConfig(method=method, **config)
-    poses = run(
-        inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg, temporal=False
-    )
+    floor = getattr(args, "floor", None)
+    if one_camera(inputs.rig, method, cfg.model):
+        poses = run_one_camera(inputs, cfg, floor, temporal=False)
+    else:
+        if floor is not None:
+            log.warning("--floor is used with one camera only; %d cameras given", len(inputs.rig))
+        poses = run(
+            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
+            temporal=False,
+        )  # fmt: skip
     check_estimated(poses, args, method)
     if out.suffix.lower() in (".trc", ".c3d") and not poses.fps:
         raise InputError(out, "fps", "a frame rate for TRC/C3D (the input has none: pass --fps)")

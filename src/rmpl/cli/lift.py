@@ -3,6 +3,10 @@
 Several people per view are associated across views and tracked; joints seen by one view
 or none are still estimated (see the per-joint view counts in the output).
 
+With one camera, depth along the rays comes from the floor (--floor), a body-size prior and
+each track's constant size (rmpl.pipeline.monocular); the output's per-joint uncertainty is
+the 50% radius of that depth error.
+
 Example: rmpl lift --calib calib.toml --keypoints kp.json --out poses.trc
 """
 
@@ -12,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from rmpl.cli._common import MODEL_HELP, add_io_arguments, run_single_method
+from rmpl.cli._common import FLOOR_HELP, MODEL_HELP, add_io_arguments, run_single_method
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -28,6 +32,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         choices=["x", "y", "z", "-x", "-y", "-z"],
         help="world up axis (default: estimated from the cameras)",
     )
+    parser.add_argument("--floor", default=None, metavar="FLOOR", help=FLOOR_HELP)
     parser.set_defaults(run=run)
 
 

@@ -20,11 +20,17 @@ through a journal (OUT/.rmpl-commit.json) once all are complete, so a failed or 
 leaves the previous complete set (or, if killed while moving, a journal the next run or
 reader finishes). Other files in OUT are left alone (docs/reliability.md).
 
+With one camera (and a per-frame model), depth along the rays comes from the floor (--floor;
+default: the calibration's convention), a body-size prior and each track's constant size
+(rmpl.pipeline.monocular); the log says how much of each, and poses.npz/json hold the
+per-joint uncertainty (the 50% radius of the depth error).
+
 Examples:
   rmpl run --calib Calib.qca.txt --keypoints pose/ --out results/
   rmpl run --calib calibration.json --keypoints shelf_dev/ --out shelf/ --method robust
   rmpl run --calib calib.toml --videos cam1.mp4 cam2.mp4 cam3.mp4 --out trial/
   rmpl run --calib calib.toml --images frames/cam1 frames/cam2 --fps 30 --out trial/
+  rmpl run --calib one_camera.toml --keypoints cam1.json --floor z=0 --fps 30 --out trial/
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rmpl.cli._common import MODEL_HELP, at_least_one, count, positive
+from rmpl.cli._common import FLOOR_HELP, MODEL_HELP, at_least_one, count, positive
 from rmpl.pipeline.outputs import FORMATS
 
 log = logging.getLogger(__name__)
@@ -86,6 +92,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         choices=["x", "y", "z", "-x", "-y", "-z"],
         help="world up axis (default: from the cameras)",
     )
+    parser.add_argument("--floor", default=None, metavar="FLOOR", help=FLOOR_HELP)
     parser.add_argument(
         "--formats",
         default="npz,json,trc,c3d",
@@ -112,7 +119,13 @@ def _formats(text: str) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rmpl.cli._common import check_cameras, check_estimated, load_calibration_and_2d
+    from rmpl.cli._common import (
+        check_cameras,
+        check_estimated,
+        load_calibration_and_2d,
+        one_camera,
+        run_one_camera,
+    )
     from rmpl.cli.lift import axis_vector
     from rmpl.pipeline.outputs import write_all, write_input_overlays
     from rmpl.pipeline.runner import RunConfig
@@ -132,11 +145,17 @@ def run(args: argparse.Namespace) -> int:
     )
     inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
     check_cameras(inputs.rig, args.calib, args.method)
-    poses = run_pipeline(
-        inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
-    )
+    single = one_camera(inputs.rig, args.method, args.model)
+    if single:  # depth from the floor, body size and time (it says so in the log)
+        poses = run_one_camera(inputs, cfg, args.floor, temporal=True)
+    else:
+        if args.floor is not None:
+            log.warning("--floor is used with one camera only; %d cameras given", len(inputs.rig))
+        poses = run_pipeline(
+            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
+        )
     check_estimated(poses, args, args.method)
-    if poses.uncertainty is not None and np.isfinite(poses.uncertainty).any():
+    if not single and poses.uncertainty is not None and np.isfinite(poses.uncertainty).any():
         r = poses.uncertainty[np.isfinite(poses.uncertainty)] * 1000
         log.info(
             "temporal model: predicted error radius (50%%) median %.0f mm, 90th percentile "

@@ -80,13 +80,12 @@ class MonocularMethod:
 
     def _floor(self, rig: Rig):
         from rmpl.geometry.floor import check_floor, convention_floor
-        from rmpl.inference import estimate_up
 
         if self.floor is not None:
             return check_floor(self.floor, rig.centers)
         if self.floor_rule == "none":
             return None
-        return convention_floor(estimate_up(rig), rig.centers)
+        return convention_floor(rig.R, rig.centers)
 
     def _lift_fn(self, up):
         lifter = self._lifter

@@ -31,6 +31,7 @@ __all__ = [
     "pcp_by_actor",
     "pcp_parts_by_actor",
     "pose_metrics",
+    "root_metrics",
     "shelf14_published",
     "shelf15",
     "shelf15_published",
@@ -181,6 +182,40 @@ def pose_metrics(
         ea = np.linalg.norm(aligned - g[enough], axis=-1)
         out["pa_mpjpe"] = 1000 * float(ea[ok[enough]].mean())
     return out
+
+
+def root_metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, float]:
+    """Where a pose stands and how big it is: the questions one view leaves open.
+
+    Args:
+        pred: (n, 17, 3) COCO-17, metres; NaN = not estimated.
+        gt: (n, 17, 3), metres; NaN = not annotated.
+
+    Returns:
+        ``root``: mean distance (mm) between the estimated and true pelvis (the midpoint of
+        the hips) over poses where both hips are estimated and annotated; ``height_ratio``:
+        the median over poses of estimated / true stature proxy
+        (:func:`rmpl.pipeline.monocular.stature_proxy`: (shin + thigh + trunk) / 0.779,
+        bone lengths, so posture does not change it), over poses where both are finite.
+        NaN when no pose qualifies.
+
+    >>> g = np.zeros((1, 17, 3))
+    >>> g[0, [15, 16], 2], g[0, [13, 14], 2], g[0, [11, 12], 2], g[0, [5, 6], 2] = 0, .4, .8, 1.3
+    >>> p = g * 1.1 + [0.3, 0.0, 0.0]
+    >>> {k: round(v, 3) for k, v in root_metrics(p, g).items()}
+    {'root': 300.0, 'height_ratio': 1.1}
+    """
+    from rmpl.pipeline.monocular import stature_proxy
+
+    hips = [COCO17.index("left_hip"), COCO17.index("right_hip")]
+    with np.errstate(invalid="ignore"):
+        e = np.linalg.norm(pred[:, hips].mean(1) - gt[:, hips].mean(1), axis=-1)
+        ratio = stature_proxy(pred) / stature_proxy(gt)
+    e, ratio = e[np.isfinite(e)], ratio[np.isfinite(ratio)]
+    return {
+        "root": 1000 * float(e.mean()) if e.size else np.nan,
+        "height_ratio": float(np.median(ratio)) if ratio.size else np.nan,
+    }
 
 
 def pcp_by_actor(

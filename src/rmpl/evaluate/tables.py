@@ -27,6 +27,7 @@ from rmpl.evaluate.scoring import (
     pcp_by_actor,
     pcp_parts_by_actor,
     pose_metrics,
+    root_metrics,
 )
 from rmpl.io.atomic import atomic_path
 from rmpl.skeleton import COCO17
@@ -82,8 +83,17 @@ def _pcp_cells(
     return row
 
 
+def _one_view(ev: Evaluation) -> bool:
+    """Whether a setting has single views: then the rows also hold ``root`` and
+    ``height_ratio`` (:func:`~rmpl.evaluate.scoring.root_metrics`)."""
+    return any(all(len(s) == 1 for s in subs) for subs in ev.view_sets.values())
+
+
 def results_rows(ev: Evaluation) -> list[dict]:
     """One row per view setting, condition and method (metrics averaged over subsets).
+
+    With a single-view setting (``--views 1``) every row also has ``root`` (pelvis error,
+    mm) and ``height_ratio`` (estimated / true stature proxy), after ``mpjpe_common``.
 
     The column ``2d_source`` names the methods' 2D input ("detections", "annotations",
     "projection" or "keypoints"; "none" for finished results). On Shelf and Campus the
@@ -107,6 +117,10 @@ def results_rows(ev: Evaluation) -> list[dict]:
                 for key in ("kpstar", "pa_mpjpe", "pck"):
                     row[key] = mean_finite(r[key] for r in per)
                 row["mpjpe_common"] = _common_mpjpe(ev, label, ci, entries)
+                if _one_view(ev):
+                    roots = [root_metrics(pred, ev.gt) for pred in entries]
+                    row["root"] = mean_finite(r["root"] for r in roots)
+                    row["height_ratio"] = mean_finite(r["height_ratio"] for r in roots)
                 if ev.evset.pcp:
                     row |= _pcp_cells(ev, entries)
                 row["dropout"], row["calib_noise"] = condition_label(p, calib)
@@ -202,11 +216,15 @@ def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
 # --------------------------------------------------------------------------- text
 
 
-def fmt(x: float) -> str:
-    """A table cell: one decimal, an em dash for NaN."""
+def fmt(x: float, digits: int = 1) -> str:
+    """A table cell: one decimal (or ``digits``), an em dash for NaN."""
     if isinstance(x, str | int | np.integer):
         return str(x)
-    return "—" if not np.isfinite(x) else f"{x:.1f}"
+    return "—" if not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+#: Columns printed with two decimals (ratios, not millimetres or percent).
+TWO_DECIMALS = ("height_ratio",)
 
 
 COLUMN_TITLES = {
@@ -218,6 +236,8 @@ COLUMN_TITLES = {
     "pa_mpjpe": "PA-MPJPE (mm)",
     "pck": "PCK@{pck} (%)",
     "mpjpe_common": "MPJPE common joints (mm)",
+    "root": "root error (mm)",
+    "height_ratio": "height ratio",
     "pcp_mean": "PCP mean (%)",
     "dropout": "dropout p",
     "calib_noise": "calib. noise",
@@ -268,7 +288,8 @@ def markdown_table(rows: list[dict], columns: list[str], pck_mm: float = 150) ->
         + "|"
     )
     for r in rows:
-        text.append("| " + " | ".join(fmt(r.get(c, np.nan)) for c in columns) + " |")
+        cells = [fmt(r.get(c, np.nan), 2 if c in TWO_DECIMALS else 1) for c in columns]
+        text.append("| " + " | ".join(cells) + " |")
     return "\n".join(text) + "\n"
 
 
@@ -421,6 +442,8 @@ def sweep_table(rows: list[dict], dropout: tuple[float, ...], calib_noise) -> st
 def _results_columns(ev: Evaluation, rows: list[dict]) -> list[str]:
     cfg = ev.config
     cols = ["views", "method", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage", "mpjpe_common"]
+    if _one_view(ev):
+        cols += ["root", "height_ratio"]
     if ev.evset.pcp:
         cols += [k for k in rows[0] if k.startswith("pcp_actor")] + ["pcp_mean"]
         cols += [k for k in rows[0] if k.startswith("pcp_lit_actor")] + ["pcp_lit_mean"]

@@ -47,8 +47,8 @@ AXES = {
     "-z": (0.0, 0.0, -1.0),
 }
 
-#: Largest angle between the cameras' up direction and a world axis for the calibration
-#: convention to apply, degrees.
+#: Largest angle between a camera's image x axis and the horizontal of a world axis for the
+#: calibration convention to apply (the camera's roll about that axis), degrees.
 CONVENTION_MAX_ANGLE = 10.0
 
 
@@ -176,26 +176,34 @@ def check_floor(floor: Floor, centers: np.ndarray, field: str = "--floor", path=
     return floor
 
 
-def convention_floor(up: np.ndarray, centers: np.ndarray) -> Floor | None:
+def convention_floor(
+    rotations: np.ndarray, centers: np.ndarray, up: np.ndarray | None = None
+) -> Floor | None:
     """The calibration convention: a world axis up and the floor at 0 along it.
 
-    Applies when ``up`` (e.g. :func:`rmpl.inference.estimate_up` of the rig) lies within
-    :data:`CONVENTION_MAX_ANGLE` degrees of a world axis and every camera centre is above
-    that plane; otherwise None (no floor is assumed).
+    The axis is the one nearest ``up`` when given, else nearest the cameras' mean image-up
+    direction. The convention applies when every camera is upright about it (its image x
+    axis within :data:`CONVENTION_MAX_ANGLE` degrees of horizontal: a small roll, any
+    pitch, so one camera looking down is fine) and above the plane; otherwise None (no
+    floor is assumed).
 
     Args:
-        up: the world up direction, (3,).
+        rotations: world-to-camera rotations (V, 3, 3).
         centers: camera centres (V, 3), metres.
+        up: the world up direction (3,), or None.
 
-    >>> convention_floor(np.array([0.01, 0.0, 1.0]), np.array([[0.0, 0.0, 2.5]])).normal
+    >>> from rmpl.geometry.camera import look_at
+    >>> R, t = look_at(np.array([5.0, 0.0, 2.5]), np.array([0.0, 0.0, 1.0]))  # 17 deg down
+    >>> convention_floor(R[None], np.array([[5.0, 0.0, 2.5]])).normal
     (0.0, 0.0, 1.0)
     """
-    u = np.asarray(up, float)
-    if not np.isfinite(u).all() or not np.linalg.norm(u) > 0:
+    R = np.asarray(rotations, float).reshape(-1, 3, 3)
+    hint = -R[:, 1, :].sum(0) if up is None else np.asarray(up, float)
+    if not np.isfinite(hint).all() or not np.linalg.norm(hint) > 0:
         return None
-    u = u / np.linalg.norm(u)
-    name, axis = max(AXES.items(), key=lambda kv: float(np.dot(kv[1], u)))
-    if np.degrees(np.arccos(np.clip(np.dot(axis, u), -1, 1))) > CONVENTION_MAX_ANGLE:
+    name, axis = max(AXES.items(), key=lambda kv: float(np.dot(kv[1], hint)))
+    tilt = np.degrees(np.arcsin(np.clip(np.abs(R[:, 0, :] @ np.asarray(axis)), 0, 1)))
+    if (tilt > CONVENTION_MAX_ANGLE).any():
         return None
     floor = Floor(axis, 0.0, f"calibration convention: {name} up, floor at {name.lstrip('-')} = 0")
     if not (signed_distance(np.asarray(centers, float).reshape(-1, 3), floor) > 0).all():

@@ -345,7 +345,7 @@ def per_frame_log_scale(cues: FrameCues, config: MonocularConfig):
 
 
 def floor_from_poses(
-    points: np.ndarray, up: np.ndarray, config: MonocularConfig | None = None
+    points: np.ndarray, up: np.ndarray | None = None, config: MonocularConfig | None = None
 ) -> Floor:
     """The floor under multi-view 3D poses of the same rig (triangulated or lifted).
 
@@ -355,7 +355,10 @@ def floor_from_poses(
 
     Args:
         points: COCO-17 poses (..., 17, 3) metres, NaN = missing (e.g. (T, P, 17, 3)).
-        up: the world up direction (3,), e.g. :func:`rmpl.inference.estimate_up` of the rig.
+        up: the world up direction (3,), e.g. :func:`rmpl.inference.estimate_up` of the rig;
+            None: the median trunk direction (mid-hip to mid-shoulder) of the poses, people
+            being mostly upright. The floor's normal is refitted to the ankles when they
+            spread over the floor (:func:`rmpl.geometry.floor.fit_floor`).
 
     Raises:
         InputError: fewer than 10 usable poses.
@@ -363,8 +366,15 @@ def floor_from_poses(
     from rmpl.geometry.floor import fit_floor
 
     cfg = config or MonocularConfig()
-    u = np.asarray(up, float) / np.linalg.norm(up)
     x = np.asarray(points, float).reshape(-1, COCO17.num_joints, 3)
+    if up is None:
+        shoulders = x[:, [_J["left_shoulder"], _J["right_shoulder"]]].mean(1)
+        trunk = shoulders - x[:, _HIPS].mean(1)
+        trunk = trunk[np.isfinite(trunk).all(-1)]
+        if not len(trunk):
+            raise InputError(None, "floor", "poses with hips and shoulders to find up", 0)
+        up = np.median(trunk / np.linalg.norm(trunk, axis=-1, keepdims=True), axis=0)
+    u = np.asarray(up, float) / np.linalg.norm(up)
     ankles = x[:, _ANKLES]  # (N, 2, 3)
     with np.errstate(invalid="ignore"):
         h = np.where(np.isfinite(ankles).all(-1), ankles @ u, np.inf)
@@ -580,6 +590,7 @@ def monocular_people(
         raise ValueError(f"monocular lifting takes one camera, got {len(rig)}")
     cfg = run_config or RunConfig()
     up = _up(rig, floor, cfg.up)
+    cfg = replace(cfg, up=tuple(float(v) for v in up))  # the lifter's up: the floor's normal
     center = rig.centers[0]
     rows = [np.flatnonzero(frame == t) for t in range(num_frames)]
     people = [Association(kp[r], sc[r], np.zeros((len(r), 1), int)) for r in rows]
