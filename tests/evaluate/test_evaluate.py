@@ -601,3 +601,83 @@ def test_score_finished_results(fixtures, tmp_path, capsys):
     assert len(err) == 1 and "frames" in err[0], err
     assert _run(*shelf, "--poses", tmp_path / "far.npz", "--views", "pairs") == 2
     assert "--views" in capsys.readouterr().err
+
+
+# --- one view: root error, height ratio, rmpl+floor -------------------------------------
+
+
+def _standing(height_scale=1.0):
+    """A hand-made upright COCO-17 pose: shins 0.43, thighs 0.40, trunk 0.50 m (proxy =
+    1.33 / 0.779 = 1.707 m), hips at x = -+0.1."""
+    x = np.zeros((17, 3))
+    x[:, 2] = 1.6  # head joints
+    x[[15, 16], 2], x[[13, 14], 2], x[[11, 12], 2], x[[5, 6], 2] = 0.07, 0.5, 0.9, 1.4
+    x[[5, 7, 9, 11, 13, 15], 0], x[[6, 8, 10, 12, 14, 16], 0] = 0.1, -0.1
+    return x * height_scale
+
+
+def test_root_metrics_by_hand():
+    from rmpl.evaluate.scoring import root_metrics
+
+    gt = np.stack([_standing(), _standing() + [2.0, 1.0, 0.0]])
+    pred = np.stack([_standing(1.1) + [0.0, 0.3, 0.0], _standing(0.9) + [2.0, 1.0, 0.4]])
+    # pelvis (the hips' midpoint at z = 0.9 x scale): pose 0 moves by (0, 0.3, 0.09),
+    # pose 1 by (0, 0, 0.4 - 0.09)
+    m = root_metrics(pred, gt)
+    assert m["root"] == pytest.approx(1000 * (np.hypot(0.3, 0.09) + 0.31) / 2)
+    assert m["height_ratio"] == pytest.approx(1.0)  # the median of 1.1 and 0.9
+    pred[1, 11] = np.nan  # a hip missing: pose 1 has no pelvis and no trunk length
+    m = root_metrics(pred, gt)
+    assert m["root"] == pytest.approx(1000 * np.hypot(0.3, 0.09))
+    assert m["height_ratio"] == pytest.approx(1.1)  # pose 0 alone
+    pred[1, 11] = pred[1, 12] * [-1, 1, 1] + [4.0, 0, 0]  # restored (x mirrored about 2 m)
+    pred[1, 13] = np.nan  # a knee missing: the other leg still measures shin and thigh
+    assert root_metrics(pred, gt)["height_ratio"] == pytest.approx(1.0)
+    assert np.isnan(root_metrics(np.full((1, 17, 3), np.nan), gt[:1])["root"])
+
+
+@pytest.mark.shared
+def test_one_view_columns_and_rmpl_floor(fixtures, tmp_path):
+    """--views 1 adds the root error and height ratio; rmpl+floor engages only with one
+    view and is plain rmpl with more."""
+    out = tmp_path / "v"
+    argv = ["--dataset", "campus", "--root", fixtures / "campus", "--2d", "annotations",
+            "--methods", "rmpl,rmpl+floor:floor+size", "--views", "1,3", "--out", out,
+            "--no-plots"]  # fmt: skip
+    assert _run(*argv) == 0
+    rows = {(r["views"], r["method"]): r for r in _rows(out / "results.csv")}
+    one = "1 view (mean of 3)"
+    for m in ("rmpl", "rmpl+floor:floor+size"):
+        assert float(rows[one, m]["root"]) > 0 and 0.5 < float(rows[one, m]["height_ratio"]) < 2
+    assert rows["3 views", "rmpl"]["mpjpe"] == rows["3 views", "rmpl+floor:floor+size"]["mpjpe"]
+    text = (out / "results.md").read_text()
+    assert "root error (mm)" in text and "height ratio" in text
+    assert "rmpl+floor (one view" in text  # the header says where the floor came from
+
+
+def test_floor_option_needs_a_floor_method_and_a_plane(tmp_path, capsys):
+    bank = _bank(tmp_path)
+    assert _run("--dataset", "synthetic", "--root", bank, "--methods", "triangulate",
+                "--floor", "z=0", "--views", "1", "--samples", "2") == 2  # fmt: skip
+    assert "rmpl+floor" in capsys.readouterr().err
+    assert _run("--dataset", "synthetic", "--root", bank, "--methods", "rmpl+floor",
+                "--floor", "estimate", "--views", "1", "--samples", "2") == 2  # fmt: skip
+    assert "'estimate' needs" in capsys.readouterr().err
+    assert _run("--dataset", "synthetic", "--root", bank, "--methods", "rmpl+floor",
+                "--floor", "0,0,0,1", "--views", "1", "--samples", "2") == 2  # fmt: skip
+    assert "plane" in capsys.readouterr().err
+    assert _run("--dataset", "synthetic", "--root", bank, "--methods", "rmpl+floor:hop",
+                "--views", "1", "--samples", "2") == 2  # fmt: skip
+    assert "floor, size, time" in capsys.readouterr().err
+
+
+def test_rmpl_floor_on_synthetic_scenes_uses_the_given_floor(tmp_path):
+    """The synthetic generator stands the lowest joint on z = 0: with that floor (ankles
+    rest at z = 0, so the floor is 0.07 below) the depth is better than the lifter's."""
+    bank = _bank(tmp_path, n=60)
+    out = tmp_path / "s"
+    assert _run("--dataset", "synthetic", "--root", bank, "--methods", "rmpl,rmpl+floor:floor",
+                "--floor", "z=-0.07", "--views", "1", "--samples", "40", "--out", out,
+                "--no-plots") == 0  # fmt: skip
+    rows = {r["method"]: r for r in _rows(out / "results.csv")}
+    assert float(rows["rmpl+floor:floor"]["mpjpe"]) < float(rows["rmpl"]["mpjpe"])
