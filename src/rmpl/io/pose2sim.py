@@ -21,12 +21,15 @@ Markers
     markers that have no IK task (eyes, ears, ``Hip``), which are written for viewers and
     for Pose2Sim's height estimate (it uses ``Hip``).
 TRC layout
-    As :mod:`rmpl.io.poses` writes it and OpenSim's ``TRCFileAdapter`` and Pose2Sim's
-    ``read_trc`` read it: ``PathFileType 4 (X/Y/Z) <file name>``, the ``DataRate ...
-    OrigNumFrames`` keys and values, ``Frame# Time <marker>...`` (each name over its three
-    columns), ``X1 Y1 Z1 ...``, a blank line, one tab-separated row per frame with a tab
-    after every field. ``Frame#`` is the rmpl frame number + 1, ``Time`` is frame / fps
-    seconds. A missing coordinate is an empty field (OpenSim reads NaN).
+    What OpenSim's ``TRCFileAdapter`` and Pose2Sim's ``read_trc`` read:
+    ``PathFileType 4 (X/Y/Z) <file name>``, the ``DataRate ... OrigNumFrames`` keys and
+    values, ``Frame# Time <marker>...`` (each name over its three columns), ``X1 Y1 Z1 ...``,
+    a blank line, one tab-separated row per frame. The marker-name line, the axes line and
+    every data row end with a tab, so all have the same number of fields: Pose2Sim reads the
+    axes line as the column header of the rows (pandas), and a header one field short would
+    turn ``Frame#`` into the index and shift every column. ``Frame#`` is the rmpl frame
+    number + 1, ``Time`` is frame / fps seconds. A missing coordinate is an empty field
+    (OpenSim reads NaN).
 Orientation
     ``"pose2sim-y-up"`` (default): Pose2Sim's own Z-up -> Y-up mapping, file (X, Y, Z) =
     world (y, z, x), so that the files overlay Pose2Sim's of the same trial; OpenSim's
