@@ -249,6 +249,8 @@ def test_run_videos_end_to_end_with_a_stand_in_detector(tmp_path, monkeypatch):
         "poses.bvh",
         "poses.json",
         "poses.npz",
+        "report.json",  # the run report (view check)
+        "report.md",
     ]
 
 
