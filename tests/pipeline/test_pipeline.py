@@ -190,3 +190,42 @@ def test_robust_triangulation_records_the_keypoints_it_left_out():
     assert robust.views_excluded[:, :, 1:].sum() < robust.views_excluded[:, :, 0].sum() / 4
     plain = run(kp, sc, rig, fps=30.0, config=RunConfig(method="triangulate"), progress=False)
     assert (plain.views_excluded == 0).all()  # plain DLT uses every keypoint
+
+
+def _blend_files(tmp_path):
+    """A 4-camera recording of two people through a single-person detector that picked A in
+    cameras c0, c1 and B in c2, c3: one blended 3D person."""
+    from tests.pipeline.test_consistency import make_rig, one_per_view, two_people
+
+    rig = make_rig()
+    sees = np.zeros((40, 4), int)
+    sees[:, 2:] = 1
+    kp, sc = one_per_view(two_people(), rig, sees)
+    save_rig(rig, tmp_path / "calib.json")
+    save_keypoints(
+        Keypoints2D(kp, sc, "coco17", rig.names, np.arange(40), 25.0), tmp_path / "kp.npz"
+    )
+    return ["run", "--calib", str(tmp_path / "calib.json"), "--keypoints",
+            str(tmp_path / "kp.npz"), "--method", "triangulate", "--no-pictures", "--out",
+            str(tmp_path / "out")]  # fmt: skip
+
+
+def test_run_cli_reports_a_blend(tmp_path, caplog):
+    import json
+    import logging
+
+    with caplog.at_level(logging.INFO):
+        main(_blend_files(tmp_path))
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["exit_code"] == 3 and report["failed_people"] == [0]
+    assert len({d["camera"] for d in report["disagreements"]}) >= 2  # one pair or the other
+    assert any("THE VIEWS DISAGREE" in r.getMessage() for r in caplog.records)
+    assert load_poses(tmp_path / "out" / "poses.json").view_status is not None
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="cli/run.py must return write_all(...).exit_code (remove this mark with that change)",
+)
+def test_run_cli_exits_3_on_a_blend(tmp_path):
+    assert main(_blend_files(tmp_path)) == 3
