@@ -215,12 +215,24 @@ def test_generate_on_local_ray(tmp_path):
     import ray
 
     cfg = GenerateConfig.from_dict({**TINY, "num_meshes": 2, "views": 2, "image_size": [256, 256]})
+    bank = save_motion_bank(tmp_path / "walk.npz", _walk_bank())
+    seq = GenerateConfig.from_dict({**TINY_SEQ, "poses": str(bank), "sequence_frames": 3})
     try:
-        summary = generate(cfg, tmp_path, workers=2, ray_address="local", progress=False)
+        summary = generate(cfg, tmp_path / "single", workers=2, ray_address="local",
+                           progress=False)  # fmt: skip
+        # Sequences run through the same Ray task.
+        seq_summary = generate(seq, tmp_path / "seq", workers=2, ray_address="local",
+                               progress=False)  # fmt: skip
     finally:
         ray.shutdown()
     assert summary["shards"] == 2 and summary["views"] == 4
-    assert [p.name for p in list_shards(tmp_path)] == ["shard_00000.npz", "shard_00001.npz"]
+    assert [p.name for p in list_shards(tmp_path / "single")] == [
+        "shard_00000.npz",
+        "shard_00001.npz",
+    ]
+    assert seq_summary["sequences"] == 2 and seq_summary["views"] == 2 * 3 * 2
+    with np.load(shard_path(tmp_path / "seq", 1)) as z:
+        assert z["keypoints"].shape == (1, 3, 2, 17, 2)
 
 
 # ------------------------------------------------------------------------------ sequences
