@@ -321,8 +321,11 @@ def render_walk(folder: Path, num_frames: int = 5, views: int = 3, fps: float = 
 MAX_MPJPE = 0.06
 
 
-@pytest.mark.parametrize("method", ["rmpl", "triangulate"])
-def test_run_on_rendered_videos_with_mediapipe(tmp_path, method):
+@pytest.mark.parametrize(
+    "method, detector",
+    [("rmpl", "mediapipe"), ("triangulate", "mediapipe"), ("rmpl", "blazepose-multi")],
+)
+def test_run_on_rendered_videos_with_mediapipe(tmp_path, method, detector):
     from rmpl.io.poses import load_poses
 
     rig, gt = render_walk(tmp_path)
@@ -330,13 +333,15 @@ def test_run_on_rendered_videos_with_mediapipe(tmp_path, method):
     args = ["run", "--calib", str(tmp_path / "calib.toml"), "--out", str(out)]
     args += ["--videos", *(str(tmp_path / f"cam{v}.mp4") for v in range(len(rig)))]
     args += ["--method", method, "--filter", "none", "--formats", "npz", "--no-pictures"]
+    args += ["--detector", detector]
     assert main(args) == 0
     assert (out / "keypoints2d.npz").is_file() and (out / "keypoints2d.inputs.json").is_file()
     poses = load_poses(out / "poses.npz")
     assert poses.points.shape == (len(gt), 1, 17, 3)
     err = np.linalg.norm(poses.points[:, 0] - gt, axis=-1)  # (T, J)
     assert np.isfinite(err).mean() > 0.9
-    print(f"\n{method}: MPJPE {np.nanmean(err):.3f} m, per joint {np.nanmean(err, 0).round(3)}")
+    per_joint = np.nanmean(err, 0).round(3)
+    print(f"\n{method}, {detector}: MPJPE {np.nanmean(err):.3f} m, per joint {per_joint}")
     assert np.nanmean(err) < MAX_MPJPE, np.nanmean(err, axis=0).round(3)
 
 
