@@ -210,23 +210,21 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
         measured = finite
     heights, height_notes = _heights(poses, measured)
     membership = _membership(poses, sc)
-    notes = []
+    notes, consistency, kp2, sc2 = [], None, None, None
     if kp.shape[0] != poses.num_frames or kp.shape[1] != len(rig):
-        membership = None
         notes.append("the 2D input does not match the poses' frames: no per-view figures")
     elif membership is None:
         notes.append("the poses do not say which 2D person each track used: no per-view figures")
-    consistency, kp2, sc2 = None, None, None
-    if membership is not None:
+    else:
         kp2, sc2 = person_2d(kp, sc, membership)
         consistency = check_views(pts, kp2, sc2, rig, heights, config)
-    poses = dataclasses.replace(
-        poses,
-        heights=heights,
-        membership=membership,
-        view_status=None if consistency is None else consistency.status,
-        camera_names=poses.camera_names or tuple(rig.names),
-    )
+        poses = dataclasses.replace(
+            poses,
+            membership=membership,
+            view_status=consistency.status,
+            camera_names=poses.camera_names or tuple(rig.names),
+        )
+    poses = dataclasses.replace(poses, heights=heights)
     people = _people(poses, measured, heights, height_notes, consistency)
     cameras, joints = [], []
     if consistency is not None:
