@@ -124,7 +124,7 @@ class MonocularConfig:
     size_sd: float = 0.20
     lifter_sd: float = 0.20
     airborne: float = 0.15
-    window: float = 1.0
+    window: float = 2.0
     min_contact_frames: int = 5
 
     def __post_init__(self) -> None:
@@ -397,21 +397,51 @@ def _windowed(values: np.ndarray, times: np.ndarray, half: float, fn) -> np.ndar
     return out
 
 
-def _local_linear(values: np.ndarray, weights: np.ndarray, times: np.ndarray, half: float):
-    """Weighted local-linear fit with a tricube kernel of half-width ``half`` s, at each time."""
-    out = np.full(len(values), np.nan)
-    ok = np.isfinite(values) & (weights > 0)
-    for i, t in enumerate(times):
-        dt = times[ok] - t
-        k = np.clip(1 - np.abs(dt / half) ** 3, 0, None) ** 3 * weights[ok]
-        if (k > 0).sum() == 0:
-            continue
-        A = np.stack([np.ones_like(dt), dt], -1) * np.sqrt(k)[:, None]
-        b = values[ok] * np.sqrt(k)
-        if (k > 0).sum() >= 3 and np.ptp(dt[k > 0]) > 0:
-            out[i] = np.linalg.lstsq(A, b, rcond=None)[0][0]
+def _local_linear(values, sds, times, half: float, iterations: int = 2) -> np.ndarray:
+    """A robust weighted local-linear fit of noisy observations, at each time.
+
+    Observations are (value, sd, time) triples; each fit weighs them by a tricube kernel of
+    half-width ``half`` seconds and ``1 / sd^2``, then (``iterations`` times, as LOWESS
+    does) by Tukey's bisquare of their standardised residual (c = 4.685), so a heavy tail
+    of one cue does not pull the depth.
+
+    Args:
+        values, sds: (K, T) K estimates per frame (NaN = absent). times: (T,) seconds.
+
+    Returns:
+        The fitted value at each time (T,), NaN where no observation is within ``half``.
+    """
+    K, T = values.shape
+    v, sd = values.ravel(), sds.ravel()
+    t = np.broadcast_to(times, (K, T)).ravel()
+    ok = np.isfinite(v) & np.isfinite(sd) & (sd > 0)
+    v, sd, t = v[ok], sd[ok], t[ok]
+    order = np.argsort(t, kind="stable")
+    v, sd, t = v[order], sd[order], t[order]
+    robust = np.ones(len(v))
+    out = np.full(T, np.nan)
+    for it in range(iterations + 1):
+        fit_at_obs = np.full(len(v), np.nan) if it < iterations else None
+        at = times if it == iterations else t
+        lo = np.searchsorted(t, at - half, "left")
+        hi = np.searchsorted(t, at + half, "right")
+        fits = np.full(len(at), np.nan)
+        for i, (a, b) in enumerate(zip(lo, hi, strict=True)):
+            dt = t[a:b] - at[i]
+            w = np.clip(1 - np.abs(dt / half) ** 3, 0, None) ** 3 / sd[a:b] ** 2 * robust[a:b]
+            if not (w > 0).any():
+                continue
+            sw, swt, swv = w.sum(), (w * dt).sum(), (w * v[a:b]).sum()
+            swtt, swtv = (w * dt * dt).sum(), (w * dt * v[a:b]).sum()
+            det = sw * swtt - swt**2
+            fits[i] = (swtt * swv - swt * swtv) / det if det > 1e-12 * sw * sw else swv / sw
+        if it == iterations:
+            out = fits
         else:
-            out[i] = (k * values[ok]).sum() / k.sum()
+            fit_at_obs = fits
+            z = (v - fit_at_obs) / sd / 4.685
+            robust = np.where(np.abs(z) < 1, (1 - z**2) ** 2, 0.0)
+            robust = np.where(np.isfinite(z), robust, 1.0)
     return out
 
 
@@ -453,9 +483,10 @@ def track_log_depth(
        stature proxy), one independent sample per second, shrunk to the adult prior
        ("size" cue); outside ``stature_range`` the floor is dropped for the track. Without
        enough contact frames it is the prior ("size") or unknown.
-    3. Per frame: the floor cue (contact frames), the size cue with the track's stature
-       and the lifter's own depth (``lifter_sd``), combined by inverse variance, then a
-       weighted local-linear smoother over ``window``.
+    3. The floor cue (contact frames), the size cue with the track's stature and the
+       lifter's own depth (``lifter_sd``) of every frame go through one robust weighted
+       local-linear smoother over ``window`` (inverse-variance weights, bisquare
+       reweighting of outliers).
 
     Args:
         points: the track's lifter poses (T, 17, 3), NaN where absent.
@@ -510,8 +541,10 @@ def track_log_depth(
         size, size_sd = np.full(T, np.nan), np.full(T, np.nan)
     floor_depth = np.where(contact, floor_depth, np.nan)
     own_sd = np.full(T, config.lifter_sd)  # the lifter's own depth: a weak estimate
-    per_frame, sd = _combine([floor_depth, size, log_r], [cues.floor_sd, size_sd, own_sd])
-    smooth = _local_linear(per_frame, 1 / np.square(sd), times, half)
+    estimates = np.stack([floor_depth, size, log_r])  # (3, T)
+    sds = np.stack([cues.floor_sd, size_sd, own_sd])
+    per_frame, sd = _combine(list(estimates), list(sds))
+    smooth = _local_linear(estimates, sds, times, half)
     smooth = np.where(np.isfinite(smooth), smooth, per_frame)
     return TrackDepth(smooth, sd, contact, stature, stature * stature_sd, dropped)
 
