@@ -15,6 +15,7 @@ from rmpl.pipeline.consistency import (
     person_2d,
 )
 from rmpl.pipeline.runner import RunConfig, run
+from rmpl.skeleton import COCO17
 
 A, D, M, O, U = (ViewStatus.AGREES, ViewStatus.DISAGREES, ViewStatus.MISSED,
                  ViewStatus.OUT_OF_VIEW, ViewStatus.UNCHECKED)  # fmt: skip
@@ -75,12 +76,12 @@ def one_per_view(X, rig, sees, seed=0):
     return kp[:, :, None], sc[:, :, None]
 
 
-def check(rig, kp, sc, config=None):
+def check(rig, kp, sc, config=None, mirror=None):
     """The run (triangulation, as fast as it gets) and the check of its tracks."""
     poses = run(kp, sc, rig, frames=FRAMES, fps=25.0, config=RunConfig(method="triangulate"),
                 progress=False)  # fmt: skip
     k2, s2 = person_2d(kp, sc, poses.membership)
-    return poses, check_views(poses.points, k2, s2, rig, config=config)
+    return poses, check_views(poses.points, k2, s2, rig, config=config, mirror=mirror)
 
 
 def test_a_view_that_sees_the_other_person_is_flagged_with_its_frames():
@@ -97,6 +98,31 @@ def test_a_view_that_sees_the_other_person_is_flagged_with_its_frames():
     assert d.median_error > 0.2  # the other person stands 1.2 m away: 0.6+ of a height
     # 20 of 40 frames contested: not most of them, so the run does not fail.
     assert c.contested[:, 0].sum() == 20 and not c.failed.any() and c.exit_code == 0
+
+
+def test_a_left_right_swap_is_told_from_another_person():
+    """Camera c3 (in front of A) swaps A's sides in frames 105-109; camera c2 shows B in
+    frames 120-129. Both disagree; only the first is a left/right swap."""
+    rig = make_rig()
+    sees = np.zeros((40, 4), int)
+    sees[20:30, 2] = 1
+    X = two_people()
+    # A does jumping jacks: arms and legs spread, so that swapping its sides moves most
+    # joints far (standing straight, a swap moves the median joint by less than 0.2).
+    for joint, dx in ((7, 0.3), (9, 0.45), (13, 0.2), (15, 0.3)):  # elbow, wrist, knee, ankle
+        X[:, 0, joint, 0] += dx * 1.8
+        X[:, 0, joint + 1, 0] -= dx * 1.8
+    X[:, 0, 7:11, 2] = X[:, 0, 5:7, 2].mean(-1, keepdims=True)  # hands at shoulder height
+    kp, sc = one_per_view(X, rig, sees)
+    kp[5:10, 3, 0] = kp[5:10, 3, 0][:, COCO17.flip_permutation()]
+    poses, c = check(rig, kp, sc, mirror=COCO17.flip_permutation())
+    assert (c.status[5:10, 0, 3] == D).all() and c.swapped[5:10, 0, 3].all()
+    assert (c.status[20:30, 0, 2] == D).all() and not c.swapped[20:30, 0, 2].any()
+    assert c.swapped.sum() == 5
+    by_view = {d.view: d for d in c.disagreements(poses.frames)}
+    assert (by_view[3].ranges, by_view[3].swapped) == (((105, 109),), 5)
+    assert (by_view[2].ranges, by_view[2].swapped) == (((120, 129),), 0)
+    assert check(rig, kp, sc)[1].swapped.sum() == 0  # no mirror given: not told
 
 
 def test_a_clean_scene_is_not_flagged():

@@ -28,6 +28,10 @@ Definitions (all per person, frame and view):
   two-view consensus is compared with the pair's triangulation. A person no pair of whose
   views is consistent is compared with the triangulation of all its other views (of both,
   with two). A joint triangulated behind the camera counts as infinitely far.
+- **Left/right swapped**: a disagreeing view whose 2D, with its left and right joints
+  exchanged (the skeleton's mirror pairs), lies within the threshold: the detector confused
+  the person's sides in that view (frequent in turns and cartwheels), rather than seeing
+  somebody else. Reported beside the disagreement.
 - **The status** (:class:`rmpl.io.poses.ViewStatus`): ``agrees`` when the error is at most
   the threshold, ``disagrees`` when above it (and every view of a person without a
   consistent pair disagrees); ``unchecked`` when the view has 2D but fewer than 5 joints
@@ -123,14 +127,16 @@ class ConsistencyConfig:
 @dataclass(frozen=True)
 class Disagreement:
     """One view disagreeing with one person: ``person`` and ``view`` are indices,
-    ``ranges`` inclusive (first, last) frame numbers, ``frames`` their count and
-    ``median_error`` the view's median error there (fraction of the person's size)."""
+    ``ranges`` inclusive (first, last) frame numbers, ``frames`` their count,
+    ``median_error`` the view's median error there (fraction of the person's size) and
+    ``swapped`` how many of those frames are left/right swaps."""
 
     person: int
     view: int
     ranges: tuple[tuple[int, int], ...]
     frames: int
     median_error: float
+    swapped: int = 0
 
 
 @dataclass
@@ -146,6 +152,8 @@ class Consistency:
         contested: (T, P) compared frames in which a view disagrees.
         failed: (P,) people contested in more than ``most_frames`` of their compared frames.
         config: the settings used.
+        swapped: (T, P, V) disagreeing views whose left/right-mirrored 2D agrees; all False
+            when no mirror permutation was given.
     """
 
     status: np.ndarray
@@ -155,6 +163,7 @@ class Consistency:
     contested: np.ndarray
     failed: np.ndarray
     config: ConsistencyConfig
+    swapped: np.ndarray | None = None
 
     def disagreements(self, frames: np.ndarray | None = None) -> list[Disagreement]:
         """Each (person, view) with disagreeing frames, most frames first."""
@@ -166,7 +175,8 @@ class Consistency:
             err = self.error[mask, p, v]
             med = float(np.median(err[np.isfinite(err)])) if np.isfinite(err).any() else np.nan
             ranges = tuple(frame_ranges(frames, mask))
-            out.append(Disagreement(int(p), int(v), ranges, int(mask.sum()), med))
+            swaps = 0 if self.swapped is None else int(self.swapped[:, p, v].sum())
+            out.append(Disagreement(int(p), int(v), ranges, int(mask.sum()), med, swaps))
         return sorted(out, key=lambda d: (-d.frames, d.person, d.view))
 
     @property
@@ -288,6 +298,7 @@ def check_views(
     rig: Rig,
     heights: np.ndarray | None = None,
     config: ConsistencyConfig | None = None,
+    mirror: np.ndarray | None = None,
 ) -> Consistency:
     """Check every person's 3D against each view's 2D (see the module docstring).
 
@@ -299,6 +310,9 @@ def check_views(
         rig: the V cameras.
         heights: (P,) metres, NaN unknown (then 1.70 m); sets each person's size.
         config: thresholds.
+        mirror: (J,) the joint permutation exchanging left and right
+            (:meth:`rmpl.skeleton.Skeleton.flip_permutation`), to tell left/right swaps;
+            None skips that.
 
     Returns:
         :class:`Consistency`.
@@ -312,6 +326,13 @@ def check_views(
     consensus, comparable = _consensus(err, has2d, thr)
     found = consensus.any(-1)  # (T, P)
     error = np.full(has2d.shape, np.nan)
+    flipped = np.full(has2d.shape, np.nan)
+    mirrored = None
+    if mirror is not None:
+        mirror = np.asarray(mirror)
+        mirrored = _Errors(
+            keypoints[..., mirror, :], scores[..., mirror], rig, size, cfg.min_joints
+        )
     for v in range(has2d.shape[-1]):
         others = consensus.copy()
         others[..., v] = False
@@ -320,7 +341,10 @@ def check_views(
         n, m = others.sum(-1, keepdims=True), everyone.sum(-1, keepdims=True)
         fallback = np.where(m >= 2, everyone, has2d)  # no consensus: all the (other) views
         ref = np.where(n >= 2, others, np.where(found[..., None], consensus, fallback))
-        error[..., v] = err(err.triangulate(ref))[..., v]
+        X = err.triangulate(ref)
+        error[..., v] = err(X)[..., v]
+        if mirrored is not None:
+            flipped[..., v] = mirrored(X)[..., v]
     error = np.where(has2d, error, np.nan)
 
     status = np.full(has2d.shape, int(ViewStatus.UNCHECKED), np.uint8)
@@ -339,7 +363,8 @@ def check_views(
     contested = compared & (disagrees >= 1)
     n_compared = compared.sum(0)
     failed = (n_compared > 0) & (contested.sum(0) > cfg.most_frames * n_compared)
-    return Consistency(status, error, size, compared, contested, failed, cfg)
+    swapped = (status == ViewStatus.DISAGREES) & (flipped <= thr)
+    return Consistency(status, error, size, compared, contested, failed, cfg, swapped)
 
 
 def frame_ranges(frames: np.ndarray, mask: np.ndarray) -> list[tuple[int, int]]:

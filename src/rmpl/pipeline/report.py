@@ -48,6 +48,7 @@ from rmpl.pipeline.consistency import (
     format_ranges,
     person_2d,
 )
+from rmpl.skeleton import SKELETONS
 
 __all__ = ["RunReport", "build_report", "log_summary", "write_report"]
 
@@ -141,6 +142,8 @@ _DEFINITIONS = {
     "agrees": "error at most the threshold",
     "disagrees": "error above the threshold: the view shows another person, or a gross "
     "detection error (when no two views agree, all views disagree)",
+    "left_right_swapped": "a disagreeing view whose 2D, with left and right exchanged, "
+    "agrees: the detector confused the person's sides in that view",
     "missed": "no 2D of the person in the view while its 3D lies inside the image",
     "out_of_view": "no 2D, and the person is outside the image",
     "unchecked": "2D present but fewer than 5 joints or no other view to compare with",
@@ -217,7 +220,8 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
         notes.append("the poses do not say which 2D person each track used: no per-view figures")
     else:
         kp2, sc2 = person_2d(kp, sc, membership)
-        consistency = check_views(pts, kp2, sc2, rig, heights, config)
+        mirror = SKELETONS[poses.skeleton].flip_permutation()
+        consistency = check_views(pts, kp2, sc2, rig, heights, config, mirror)
         poses = dataclasses.replace(
             poses,
             membership=membership,
@@ -243,6 +247,7 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
                     "camera": poses.camera_names[d.view],
                     "frames": d.frames,
                     "ranges": [list(r) for r in d.ranges],
+                    "left_right_swapped_frames": d.swapped,
                     "median_error_of_size": round(d.median_error, 3)
                     if np.isfinite(d.median_error)
                     else None,
@@ -393,7 +398,13 @@ def verdict_lines(report: RunReport) -> list[str]:
             continue
         dis = int((c.status[:, p] == ViewStatus.DISAGREES).any(-1).sum())
         views = "; ".join(
-            f"{d['camera']} in {d['frames']} frames ({format_ranges(d['ranges'])})" for d in rows
+            f"{d['camera']} in {d['frames']} frames ({format_ranges(d['ranges'])})"
+            + (
+                f", left/right swapped in {d['left_right_swapped_frames']} of them"
+                if d["left_right_swapped_frames"]
+                else ""
+            )
+            for d in rows
         )
         head = (
             f"person {pid} FAILED the view check: in {dis} of its "
@@ -468,6 +479,7 @@ def _markdown(r: RunReport) -> str:
                 ("frames", "frames"),
                 ("ranges_text", "frame ranges"),
                 ("median_error_of_size", "median error (fraction of size)"),
+                ("left_right_swapped_frames", "of which left/right swapped"),
             ],
         )
     else:
