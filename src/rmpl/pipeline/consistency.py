@@ -29,7 +29,9 @@ Definitions (all per person, frame and view):
   views is consistent is compared with the triangulation of all its other views (of both,
   with two). A joint triangulated behind the camera counts as infinitely far.
 - **Left/right swapped**: a disagreeing view whose 2D, with its left and right joints
-  exchanged (the skeleton's mirror pairs), lies within the threshold: the detector confused
+  exchanged (the skeleton's mirror pairs), lies within the threshold and at most half as far
+  as it did (another person close by can also lie within the threshold once mirrored): the
+  detector confused
   the person's sides in that view (frequent in turns and cartwheels), rather than seeing
   somebody else. Reported beside the disagreement.
 - **The status** (:class:`rmpl.io.poses.ViewStatus`): ``agrees`` when the error is at most
@@ -363,7 +365,7 @@ def check_views(
     contested = compared & (disagrees >= 1)
     n_compared = compared.sum(0)
     failed = (n_compared > 0) & (contested.sum(0) > cfg.most_frames * n_compared)
-    swapped = (status == ViewStatus.DISAGREES) & (flipped <= thr)
+    swapped = (status == ViewStatus.DISAGREES) & (flipped <= np.minimum(thr, 0.5 * error))
     return Consistency(status, error, size, compared, contested, failed, cfg, swapped)
 
 

@@ -143,7 +143,8 @@ _DEFINITIONS = {
     "disagrees": "error above the threshold: the view shows another person, or a gross "
     "detection error (when no two views agree, all views disagree)",
     "left_right_swapped": "a disagreeing view whose 2D, with left and right exchanged, "
-    "agrees: the detector confused the person's sides in that view",
+    "agrees (and is at least twice closer): the detector confused the person's sides in that "
+    "view",
     "missed": "no 2D of the person in the view while its 3D lies inside the image",
     "out_of_view": "no 2D, and the person is outside the image",
     "unchecked": "2D present but fewer than 5 joints or no other view to compare with",
