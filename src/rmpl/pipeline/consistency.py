@@ -98,6 +98,9 @@ log = logging.getLogger(__name__)
 #: Exit status of ``rmpl run`` when a person fails the check (outputs are written).
 EXIT_VIEWS_DISAGREE = 3
 
+#: Checks of at least this many person-frames (T x P) show a progress bar.
+PROGRESS_FROM = 5000
+
 #: Nominal standing height, metres, for a person whose height is unknown.
 NOMINAL_HEIGHT = 1.70
 
@@ -271,7 +274,7 @@ class _Errors:
         return np.where(enough, med / self.size, np.nan)
 
 
-def _consensus(err: _Errors, has2d: np.ndarray, thr: float) -> tuple[np.ndarray, np.ndarray]:
+def _consensus(err: _Errors, has2d: np.ndarray, thr: float, bar) -> tuple[np.ndarray, np.ndarray]:
     """The set of mutually agreeing views per person and frame (T, P, V) bool (the lowest
     truncated cost of a consistent pair), and (T, P) whether any pair could be compared."""
     T, P, V = has2d.shape
@@ -279,6 +282,7 @@ def _consensus(err: _Errors, has2d: np.ndarray, thr: float) -> tuple[np.ndarray,
     consensus = np.zeros((T, P, V), bool)
     comparable = np.zeros((T, P), bool)
     for a, b in itertools.combinations(range(V), 2):
+        bar.update()
         pair = np.zeros(V, bool)
         pair[[a, b]] = True
         E = err(err.triangulate(np.broadcast_to(pair, has2d.shape) & has2d))
@@ -325,7 +329,12 @@ def check_views(
     size = _sizes(points, keypoints, rig, heights)
     err = _Errors(keypoints, scores, rig, size, cfg.min_joints)
     has2d = err.valid.any(-1) & present[..., None]  # (T, P, V)
-    consensus, comparable = _consensus(err, has2d, thr)
+    from tqdm import tqdm
+
+    T, P, V = has2d.shape
+    big = T * P >= PROGRESS_FROM  # long recordings: a few seconds per 10,000 person-frames
+    bar = tqdm(total=V * (V - 1) // 2 + V, desc="view check", unit="step", disable=not big)
+    consensus, comparable = _consensus(err, has2d, thr, bar)
     found = consensus.any(-1)  # (T, P)
     error = np.full(has2d.shape, np.nan)
     flipped = np.full(has2d.shape, np.nan)
@@ -335,7 +344,8 @@ def check_views(
         mirrored = _Errors(
             keypoints[..., mirror, :], scores[..., mirror], rig, size, cfg.min_joints
         )
-    for v in range(has2d.shape[-1]):
+    for v in range(V):
+        bar.update()
         others = consensus.copy()
         others[..., v] = False
         everyone = has2d.copy()
@@ -347,6 +357,7 @@ def check_views(
         error[..., v] = err(X)[..., v]
         if mirrored is not None:
             flipped[..., v] = mirrored(X)[..., v]
+    bar.close()
     error = np.where(has2d, error, np.nan)
 
     status = np.full(has2d.shape, int(ViewStatus.UNCHECKED), np.uint8)

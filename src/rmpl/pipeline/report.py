@@ -433,7 +433,8 @@ def _markdown(r: RunReport) -> str:
     md = [
         "# rmpl run report",
         "",
-        f"{p.num_frames} frames ({frames}, {fps}), {p.num_people} people, "
+        f"{p.num_frames} frames ({frames}, {fps}), {p.num_people} "
+        f"{'person' if p.num_people == 1 else 'people'}, "
         f"{len(p.camera_names or ())} cameras ({', '.join(p.camera_names or ())}).",
         "",
         "## Verdict",
