@@ -79,7 +79,8 @@ def test_convention_needs_upright_cameras_above_an_axis():
     assert "convention" in f.source
     one = _camera([4.0, 0, 3.5])  # one camera looking down 28 degrees: still upright
     assert convention_floor(one[None], np.array([[4.0, 0, 3.5]])).normal == (0.0, 0.0, 1.0)
-    rolled = _camera([4.0, 0, 3.5], roll=20)
+    assert convention_floor(_camera([4.0, 0, 3.5], roll=20)[None], np.array([[4.0, 0, 3.5]]))
+    rolled = _camera([4.0, 0, 3.5], roll=40)
     assert convention_floor(rolled[None], np.array([[4.0, 0, 3.5]])) is None
     assert convention_floor(R, -CAMERAS) is None  # cameras below z = 0
     y_down = _camera([0, -2.0, 4.0], target=(0, -1.0, 0), up=(0, -1.0, 0))  # Panoptic-like

@@ -23,8 +23,9 @@ FLOOR_HELP = (
     "one camera: the floor plane that fixes depth. AXIS=H (AXIS one of x, y, z, -x, -y, -z "
     "pointing up; e.g. z=0: z up, floor at z = 0) or nx,ny,nz,d (the plane n . X = d, n "
     "pointing up); or a poses file (.npz/.json/.trc) of a multi-view run of the same rig to "
-    "estimate it from; or 'none'. Default: the calibration's convention (the cameras' up "
-    "within 10 deg of a world axis, the floor at 0 along it) when it has one"
+    "estimate it from; or 'none'. Default: the calibration's convention (the cameras "
+    "upright about a world axis, rolled less than 30 deg, the floor at 0 along it) when it "
+    "has one"
 )
 
 log = logging.getLogger(__name__)

@@ -183,8 +183,8 @@ def set_floor(methods: dict, spec: str | None, evset=None) -> str:
         text = floor.describe()
     elif spec in (None, "convention"):
         text = (
-            "the calibration convention (the cameras' up axis within 10 deg of a world "
-            "axis, the floor at 0 along it), when the rig has one"
+            "the calibration convention (the cameras upright about a world axis, rolled "
+            "less than 30 deg, the floor at 0 along it), when the rig has one"
         )
     else:
         floor = parse_floor(spec)
