@@ -202,7 +202,12 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
         poses = run_one_camera(inputs, cfg, floor, temporal=False)
     else:
         if floor is not None:
-            log.warning("--floor is used with one camera only; %d cameras given", len(inputs.rig))
+            log.warning(
+                "--floor is not used: it serves one camera with a per-frame model "
+                "(%d cameras, model %s)",
+                len(inputs.rig),
+                cfg.model,
+            )
         poses = run(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
             temporal=False,

@@ -150,7 +150,13 @@ def run(args: argparse.Namespace) -> int:
         poses = run_one_camera(inputs, cfg, args.floor, temporal=True)
     else:
         if args.floor is not None:
-            log.warning("--floor is used with one camera only; %d cameras given", len(inputs.rig))
+            log.warning(
+                "--floor is not used: it serves one camera with a per-frame model "
+                "(%d cameras, --method %s, --model %s)",
+                len(inputs.rig),
+                args.method,
+                args.model,
+            )
         poses = run_pipeline(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
         )

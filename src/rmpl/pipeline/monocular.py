@@ -744,7 +744,8 @@ def lift_single_view(
     if temporal and len(tracks):
         tracks, interpolated = smooth(tracks, fps, cfg)
     ok = np.isfinite(tracks).all(-1)
-    flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, 1, 0))
+    lifted = int(JointSource.LIFTED)
+    flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, lifted, 0))
     tracks[~ok] = np.nan
     sigma = res.sigma.copy()
     if temporal and len(tracks):  # gap-filled frames: the neighbours' spread
