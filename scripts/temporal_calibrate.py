@@ -3,7 +3,8 @@
 Usage: python scripts/temporal_calibrate.py SEQBANK CHECKPOINT [--windows 64]
 
 The same windows and rule as training's last validation (CMU subject 03 held out, the
-temporal detector model of the checkpoint's recipe, seed 12345, 2, 3 and 5 views):
+temporal detector model of the checkpoint's recipe, seed 12345, 2, 3 and 5 views), the
+answer assembled as the checkpoint's lifter does (``"inference": {"assemble": ...}``):
 :func:`rmpl.training.temporal.fit_radius_calibration`. Writes the ``"calibration"`` entry
 of ``CHECKPOINT/config.json`` (atomically); the weights are not touched. For checkpoints
 trained before the calibration existed; training writes it itself.
@@ -18,6 +19,7 @@ from pathlib import Path
 import torch
 
 from rmpl.data.sequences import SequenceBank
+from rmpl.inference_temporal import TemporalLifter
 from rmpl.io.atomic import atomic_path
 from rmpl.training.temporal import (
     TemporalTrainConfig,
@@ -42,7 +44,8 @@ def main() -> None:
     )
     _, val = SequenceBank.load(a.bank).split(train.get("holdout", ["03"]))
     sets = validation_sets(val, cfg, views=(2, 3, 5))
-    calibration = fit_radius_calibration(model, sets)
+    assemble = TemporalLifter(model, meta, onnx=False).assemble
+    calibration = fit_radius_calibration(model, sets, assemble=assemble)
     meta["calibration"] = calibration.to_meta()
     path = Path(a.checkpoint) / "config.json"
     with atomic_path(path) as tmp:

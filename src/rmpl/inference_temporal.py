@@ -10,6 +10,13 @@ A track longer than the model's window is read in windows overlapping by half, e
 averaged over the windows that hold it with triangular weights (a window's middle counts
 most). Every frame is encoded once by the per-frame model. The world's up axis is handled as
 in :class:`rmpl.inference.Lifter`.
+
+How the answer is assembled is the checkpoint's ``"inference": {"assemble": ...}``
+(:data:`ASSEMBLE`): ``"network"`` returns the temporal network's output; ``"filtered"``
+(the shipped model's) takes the per-frame model's answer where at least two views see the
+joint and the network's elsewhere, then runs ``rmpl run``'s filters over the whole track
+(:func:`assemble_track`). The second was chosen on held-out synthetic windows
+(docs/results.md): the network adds most where fewer than two views see a joint.
 """
 
 from __future__ import annotations
@@ -28,7 +35,9 @@ from rmpl.inference import PRETRAINED, estimate_up, rotation_to_z
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
 
 __all__ = [
+    "ASSEMBLE",
     "RadiusCalibration",
+    "assemble_track",
     "TemporalLifter",
     "TrackResult",
     "frame_times",
@@ -131,6 +140,47 @@ class TrackResult:
         return self.sigma * (RADIUS_50 if level == 0.5 else RADIUS_90)
 
 
+#: Ways to assemble a track's answer (see the module doc).
+ASSEMBLE = ("network", "filtered")
+
+
+def assemble_track(
+    network: np.ndarray, frame: np.ndarray, num_views: np.ndarray, times: np.ndarray
+) -> np.ndarray:
+    """The ``"filtered"`` answer of one track.
+
+    The per-frame answer where at least two views see the joint, the network's elsewhere,
+    then ``rmpl run``'s filters with its defaults: a Hampel filter (7 frames, 3 cm floor),
+    gaps of up to 20 frames filled, and a zero-phase 4th-order Butterworth at 6 Hz (at most
+    0.45 x the frame rate). A point the filters leave empty (an outlier at the end of a run)
+    takes the network's answer.
+
+    Args:
+        network: (T, J, 3) the temporal network's output, NaN where it has none.
+        frame: (T, J, 3) the per-frame model's answer (anything where unused).
+        num_views: (T, J) views that see each joint.
+        times: (T,) seconds, increasing.
+
+    Returns:
+        (T, J, 3), NaN where ``network`` is NaN.
+    """
+    from rmpl.pipeline import filters
+
+    has = np.isfinite(network).all(-1, keepdims=True)  # (T, J, 1)
+    x = np.where((num_views >= 2)[..., None] & np.isfinite(frame), frame, network)
+    x = np.where(has, x, np.nan)[:, None]  # (T, 1, J, 3)
+    if len(x) >= 7:
+        x = filters.hampel(x, window=7, min_deviation=0.03)
+    x, _ = filters.fill_gaps(x, max_gap=20)
+    if len(x) >= 2:
+        rate = 1.0 / float(np.median(np.diff(times)))
+        x = filters.butterworth(x, rate, cutoff=min(6.0, 0.45 * rate), order=4)
+    # A point the filters left empty (an outlier at a run's end) keeps the network's answer;
+    # a frame the network has no answer for stays empty.
+    x = np.where(np.isfinite(x[:, 0]), x[:, 0], network)
+    return np.where(has, x, np.nan)
+
+
 def frame_times(num_frames: int, fps: float | None, times: np.ndarray | None) -> np.ndarray:
     """Timestamps (T,) in seconds from ``times`` or ``fps`` (exactly one must be given)."""
     if (fps is None) == (times is None):
@@ -170,13 +220,23 @@ class TemporalLifter:
 
     Args:
         model: the network. meta: the checkpoint's description. onnx: run the per-frame
-            model through onnxruntime when it is installed.
+            model through onnxruntime when it is installed. assemble: one of
+            :data:`ASSEMBLE`; None: the checkpoint's (``"network"`` when it names none).
     """
 
-    def __init__(self, model: TemporalRMPL, meta: dict | None = None, onnx: bool = True) -> None:
+    def __init__(
+        self,
+        model: TemporalRMPL,
+        meta: dict | None = None,
+        onnx: bool = True,
+        assemble: str | None = None,
+    ) -> None:
         self.model = model.eval()
         self.meta = meta or {}
         self.calibration = RadiusCalibration.from_meta(self.meta)
+        self.assemble = assemble or _assemble_of(self.meta)
+        if self.assemble not in ASSEMBLE:
+            raise ValueError(f"assemble must be one of {ASSEMBLE}, got {self.assemble!r}")
         if onnx and self.model.fast_encoder is None:
             try:
                 self.model.use_onnx()
@@ -195,6 +255,7 @@ class TemporalLifter:
             )
         model, meta = load_temporal(path)
         RadiusCalibration.from_meta(meta, path / "config.json")  # a damaged entry: one error
+        _assemble_of(meta, path / "config.json")
         return cls(model, meta)
 
     @property
@@ -253,7 +314,9 @@ class TemporalLifter:
         rays, s, Rc = self._rays(kp, sc, rig, up)
         t = frame_times(len(kp), fps, times)
         t = t - t[0]  # in float64: a clock's origin (e.g. Unix time) would swamp float32
-        points, sigma = self._windows(rays, s, t, batch_windows)
+        points, sigma, frame = self._windows(rays, s, t, batch_windows)
+        if self.assemble == "filtered":
+            points = assemble_track(points, frame, (s > 0).sum(1), t)
         points = points @ Rc  # back to the user's world
         seen = np.flatnonzero((s > 0).any((1, 2)))
         outside = np.ones(len(t), bool)
@@ -262,15 +325,20 @@ class TemporalLifter:
         points[outside], sigma[outside] = np.nan, np.nan
         return TrackResult(points, sigma, (s > 0).sum(1), self.calibration)
 
-    def _windows(self, rays, s, t: np.ndarray, batch: int) -> tuple[np.ndarray, np.ndarray]:
+    def _windows(self, rays, s, t: np.ndarray, batch: int):
         """Overlapping windows, ``batch`` at a time: each group's frames are encoded by the
         per-frame model, read by the temporal stage, and stitched with triangular weights
-        (memory stays that of one group, whatever the track's length)."""
+        (memory stays that of one group, whatever the track's length).
+
+        Returns:
+            the network's points (T, J, 3) and sigma (T, J), and the per-frame model's
+            answer (T, J, 3), all in the z-up frame."""
         T = len(t)
         W = min(self.window, T)
         starts = window_starts(T, W)
         acc = np.zeros((T, self.num_joints, 3))
         acc_s = np.zeros((T, self.num_joints))
+        frame = np.full((T, self.num_joints, 3), np.nan)
         weight = np.zeros(T)
         tri = _triangle(W)
         times = torch.from_numpy(t.astype(np.float32))
@@ -279,6 +347,7 @@ class TemporalLifter:
             a0, a1 = chunk[0], chunk[-1] + W  # the frames this group reads
             r, sc = torch.from_numpy(rays[a0:a1])[None], torch.from_numpy(s[a0:a1])[None]
             enc = self.model.encode_frames(r, sc)
+            frame[a0:a1] = enc[0][0].numpy()
             parts = [torch.stack([e[0, a - a0 : a - a0 + W] for a in chunk]) for e in enc]
             tt = torch.stack([times[a : a + W] for a in chunk])
             p, sg = self.model.forward_encoded(*parts, tt)
@@ -293,4 +362,13 @@ class TemporalLifter:
             sigma = acc_s / weight[:, None]
         points[weight == 0] = np.nan
         sigma[weight == 0] = np.nan
-        return points, sigma
+        return points, sigma, frame
+
+
+def _assemble_of(meta: dict, path: Path | None = None) -> str:
+    """The checkpoint's ``"inference": {"assemble": ...}``, ``"network"`` when absent."""
+    entry = meta.get("inference") or {}
+    value = entry.get("assemble", "network") if isinstance(entry, dict) else entry
+    if value not in ASSEMBLE:
+        raise InputError(path, "inference.assemble", f"one of {', '.join(ASSEMBLE)}", value)
+    return value

@@ -376,7 +376,6 @@ def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Ru
     """:func:`lift_people` plus the index (T, P) of each track's person per frame."""
     from rmpl.inference import Lifter
     from rmpl.inference_temporal import TemporalLifter
-    from rmpl.model.temporal import RADIUS_50
     from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
 
     if fps is None:
@@ -385,7 +384,10 @@ def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Ru
     frame = Lifter(lifter.model.frame_model)
     up = None if cfg.up is None else np.asarray(cfg.up, float)
     fn = lambda kp, sc, r: (lambda x: (x.points, x.num_views))(frame.lift(kp, sc, r, up=up))  # noqa: E731
-    log.info("the temporal model lifts whole tracks; it replaces the filters (--filter, --cutoff)")
+    log.info(
+        "the temporal model lifts whole tracks with its own assembly and filters "
+        "(%s); --filter and --cutoff do not apply", lifter.assemble,
+    )  # fmt: skip
     pts, _ = estimate(people, rig, cfg, fn=fn)
     J = lifter.num_joints
     if not any(len(p) for p in pts):  # nobody anywhere: an empty result (refused upstream)
@@ -398,10 +400,10 @@ def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Ru
     else:
         index, ids = track_index(pts, cfg)
     kp, sc = tracks_2d(people, index)
-    tracks, sigma, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up)
+    tracks, radius, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up)
     filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
     interpolated = filled & np.isfinite(tracks).all(-1)
-    return tracks, sigma * RADIUS_50, views, ids, interpolated, index
+    return tracks, radius, views, ids, interpolated, index
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:

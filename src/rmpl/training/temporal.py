@@ -285,19 +285,37 @@ def radius_quantiles(
 
 
 @torch.no_grad()
-def fit_radius_calibration(model: TemporalRMPL, sets: dict, min_views: int = 2):
-    """:func:`radius_quantiles` of the model on held-out windows (``sets``: view count ->
-    batch), from the sets with at least ``min_views`` views: one-view rigs have their own
-    error scale and are not what the temporal model serves."""
+def assembled_windows(model: TemporalRMPL, b, assemble: str = "network"):
+    """The model's answer on a batch of windows as a lifter assembles it
+    (:data:`rmpl.inference_temporal.ASSEMBLE`): points (B, T, J, 3), sigma (B, T, J) numpy."""
+    from rmpl.inference_temporal import assemble_track
+
+    rays, scores, times, _ = _tensors(b)
+    points, sigma = (x.numpy() for x in model(rays, scores, times))
+    if assemble == "filtered":
+        frame = model.encode_frames(rays, scores)[0].numpy()
+        views = (b.scores > 0).sum(2)
+        points = np.stack([assemble_track(points[i], frame[i], views[i], b.times[i])
+                           for i in range(len(points))])  # fmt: skip
+    return points, sigma
+
+
+@torch.no_grad()
+def fit_radius_calibration(
+    model: TemporalRMPL, sets: dict, min_views: int = 2, assemble: str = "network"
+):
+    """:func:`radius_quantiles` of the model, its answer assembled as ``assemble``, on
+    held-out windows (``sets``: view count -> batch), from the sets with at least
+    ``min_views`` views: one-view rigs have their own error scale and are not what the
+    temporal model serves."""
     model.eval()
     err, sig, views = [], [], []
     for v, b in sets.items():
         if v < min_views:
             continue
-        rays, scores, times, target = _tensors(b)
-        points, sigma = model(rays, scores, times)
-        err.append((points - target).norm(dim=-1).flatten().numpy())
-        sig.append(sigma.flatten().numpy())
+        points, sigma = assembled_windows(model, b, assemble)
+        err.append(np.linalg.norm(points - b.target, axis=-1).flatten())
+        sig.append(sigma.flatten())
         views.append((b.scores > 0).sum(2).flatten())
     return radius_quantiles(np.concatenate(err), np.concatenate(sig), np.concatenate(views))
 
