@@ -7,6 +7,8 @@ Examples:
   rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --views 1,2,3,4,5
   rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --dropout 0,0.2,0.4
   rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --calib-noise 2,20
+  rmpl evaluate --dataset shelf --root ../shared/data/shelf_dev --methods rmpl,rmpl+floor \\
+      --views 1 --floor estimate   (one camera: depth from the floor, body size and time)
   rmpl evaluate --dataset campus --root CAMPUS --2d annotations
   rmpl evaluate --dataset panoptic --root PANOPTIC --keypoints cam00_03.json cam00_06.json ...
   rmpl evaluate --dataset h36m --root H36M --subject S9
