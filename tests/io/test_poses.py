@@ -171,7 +171,8 @@ def test_trc_header_is_what_opensim_reads(tmp_path):
     assert all(names[2 + 3 * i] == expected[i] for i in range(M))  # over its X column
     xyz = lines[4].split("\t")
     assert xyz[:2] == ["", ""]
-    assert xyz[2:] == [f"{c}{i}" for i in range(1, M + 1) for c in "XYZ"]
+    # a trailing tab, as on the data rows: Pose2Sim's reader counts the columns on this line
+    assert xyz[2:] == [f"{c}{i}" for i in range(1, M + 1) for c in "XYZ"] + [""]
     assert lines[5] == ""
 
     rows = [ln for ln in lines[6:] if ln]

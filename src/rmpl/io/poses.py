@@ -597,7 +597,8 @@ def _trc_text(poses: Poses3D, name: str, units: str, up_axis: str | None) -> str
         "\t".join(_TRC_KEYS),
         "\t".join([rate, rate, str(T), str(M), units, rate, str(poses.frames[0] + 1), str(T)]),
         "\t".join(["Frame#", "Time", *(f"{m}\t\t" for m in markers)]),
-        "\t\t" + "\t".join(f"X{i}\tY{i}\tZ{i}" for i in range(1, M + 1)),
+        # ends with a tab like the data rows: Pose2Sim's reader counts the columns here
+        "\t\t" + "\t".join(f"X{i}\tY{i}\tZ{i}" for i in range(1, M + 1)) + "\t",
         "",
     ]
     decimals = 6 if units == "m" else 3  # micrometres either way
