@@ -34,6 +34,8 @@ Units: metres, seconds; scales are dimensionless, "log" means natural logarithm.
 from __future__ import annotations
 
 import logging
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -46,14 +48,18 @@ from rmpl.skeleton import COCO17
 
 __all__ = [
     "CUES",
+    "FrameCues",
     "MonocularConfig",
     "MonocularResult",
+    "TrackDepth",
     "floor_from_poses",
     "floor_log_scale",
+    "frame_cues",
     "lift_single_view",
     "lift_stretch",
     "may_touch_floor",
     "monocular_people",
+    "per_frame_log_scale",
     "size_log_scale",
     "stature_proxy",
     "track_log_depth",
@@ -186,18 +192,12 @@ def stature_proxy(points: np.ndarray) -> np.ndarray:
     return (shin + thigh + trunk) / STATURE_RATIO
 
 
-class _quiet:
+@contextmanager
+def _quiet():
     """Silence numpy's "mean of empty slice" warnings (all-NaN rows stay NaN)."""
-
-    def __enter__(self):
-        import warnings
-
-        self._w = warnings.catch_warnings()
-        self._w.__enter__()
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-
-    def __exit__(self, *exc):
-        return self._w.__exit__(*exc)
+        yield
 
 
 def _angle_from(v: np.ndarray, up: np.ndarray) -> np.ndarray:
