@@ -371,7 +371,7 @@ def test_lift_one_camera_uses_the_calibration_convention(tmp_path, caplog):
 @pytest.mark.parametrize(
     "floor, words",
     [("z=3", ["--floor", "below the cameras"]), ("0,0,0,1", ["--floor", "plane"]),
-     ("up", ["--floor", "AXIS=H"])],
+     ("up", ["--floor", "AXIS=H"]), ("multi.npz", ["--floor", "existing poses file"])],
 )  # fmt: skip
 def test_run_one_camera_refuses_a_bad_floor(tmp_path, capsys, floor, words):
     _one_camera_walk(tmp_path)

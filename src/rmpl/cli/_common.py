@@ -157,6 +157,8 @@ def resolve_floor(spec: str | None, rig: Rig, up):
         except InputError as e:
             raise InputError(spec, "points", e.expected, e.got) from None
         return check_floor(floor, rig.centers, "--floor", spec)
+    if Path(spec).suffix.lower() in (".npz", ".json", ".trc", ".c3d"):
+        raise InputError(spec, "--floor", "an existing poses file of a multi-view run", "none")
     return check_floor(parse_floor(spec), rig.centers)
 
 
