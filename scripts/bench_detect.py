@@ -17,6 +17,9 @@ Options:
     hog                      OpenCV's HOG people detector (its weights are in the opencv
                              wheel) at half resolution: people boxes only, no keypoints
 
+``--mosaic cam01,cam04`` measures one more stream: those two views' frames scaled to 1080
+pixels high side by side on a 1920 x 1080 canvas (4 people in the multi-person demo).
+
 Each line is printed with the load average (``os.getloadavg``) measured beside it: the
 machine is shared, so compare options measured at similar load.
 
@@ -139,11 +142,33 @@ def _option(name: str):
     return _Keypoints(name)
 
 
+def _mosaic(views: list, names: list[str]) -> tuple:
+    """One stream of 1920 x 1080 frames: the named views, scaled to 1080 high, side by side."""
+    import cv2
+
+    parts = [v for v in views if v[0] in names]
+    if len(parts) != len(names):
+        sys.exit(f"--mosaic: views {names} not all among {[v[0] for v in views]}")
+    frames = []
+    for t in range(min(len(p[1]) for p in parts)):
+        canvas = np.zeros((1080, 1920, 3), np.uint8)
+        x = 0
+        for p in parts:
+            h, w = p[1][t].shape[:2]
+            im = cv2.resize(p[1][t], (round(w * 1080 / h), 1080), interpolation=cv2.INTER_AREA)
+            canvas[:, x : x + im.shape[1]] = im[:, : 1920 - x]
+            x += im.shape[1]
+        frames.append(canvas)
+    return ("mosaic " + "+".join(names) + " 1920x1080", frames, max(p[2] for p in parts))
+
+
 def speed(args: argparse.Namespace) -> None:
     videos = sorted(Path(args.videos).glob("*.mp4"))
     if not videos:
         sys.exit(f"no .mp4 in {args.videos}")
     views = [(v.stem, *_frames(v, args.frames)) for v in videos]
+    if args.mosaic:
+        views.append(_mosaic(views, args.mosaic.split(",")))
     h, w = views[0][1][0].shape[:2]
     print(f"{len(videos)} views, {len(views[0][1])} frames of {w}x{h}, {os.cpu_count()} cores")
     print("| option | view | frames/s (detector) | frames/s (with decoding) | people/frame "
@@ -215,6 +240,7 @@ def main() -> None:
     s.add_argument("videos", help="a folder of synchronised .mp4 videos")
     s.add_argument("--frames", type=int, default=100)
     s.add_argument("--options", default="mediapipe,tasks,blazepose-multi,blazepose-multi-static")
+    s.add_argument("--mosaic", help="also a 1920x1080 stream of these views side by side")
     s.set_defaults(fn=speed)
     t = sub.add_parser("tracks", help="per-track statistics of an rmpl run folder")
     t.add_argument("run", help="an rmpl run --out folder (poses.npz, keypoints2d.npz)")

@@ -17,9 +17,9 @@ Like BlazePose's own tracking mode, a person found in one frame is followed into
 through the crop its auxiliary landmarks give, so the detector is only needed to find new
 people. The detector's input is square, so in a long image (a portrait 1080 x 1920 video)
 people are small in a whole-image view and it misses some: it also looks at square
-windows of the image (:func:`detector_windows`). On a frame where nobody is followed or
-someone was lost it looks at the whole image and every window; otherwise at one of them
-every ``detect_every`` frames, in turn. A followed person keeps its slot in the people axis
+windows of the image (:func:`detector_windows`). On a frame where nobody is followed it
+looks at the whole image and every window; where someone was lost, at the whole image;
+otherwise at one of them every ``detect_every`` frames, in turn. A followed person keeps its slot in the people axis
 while the landmark network says it is present.
 
 The networks run on MediaPipe's own TFLite runtime (XNNPACK) through the Tasks
@@ -369,8 +369,8 @@ class BlazePoseMulti:
         min_presence: landmark network's presence score to keep a person, in (0, 1).
         track: follow people into the next frame; False treats every image afresh.
         detect_every: with ``track``, run the person detector on one window every k-th
-            frame (and on all of them where nobody is followed or someone was lost); 1 runs
-            it on every frame.
+            frame (on all of them where nobody is followed, on the whole image where someone
+            was lost); 1 runs it on every frame.
         same_person: two results whose landmarks (visible in both) lie within this fraction
             of the body size, in median, are one person, and so is a result most of whose
             landmarks lie this close to another's bones (a phantom); the earlier slot
@@ -462,9 +462,10 @@ class BlazePoseMulti:
         for n, p in followed:
             add(n, self._landmark(image, p.centre, p.side, p.angle))
         windows = detector_windows(*image.shape[:2])
-        if not self.track or not found or len(found) < len(followed):
-            # Every image afresh, nobody followed, or someone lost: look everywhere now.
-            scan = windows
+        if not self.track or not found:
+            scan = windows  # every image afresh, or nobody followed: look everywhere now
+        elif len(found) < len(followed):
+            scan = windows[:1]  # someone lost: the whole image now, the windows in turn
         elif self._frame % self.detect_every == 0:
             # One detector run per frame, cycling through the whole image and its windows.
             scan = [windows[(self._frame // self.detect_every) % len(windows)]]
