@@ -191,4 +191,8 @@ def set_floor(methods: dict, spec: str | None, evset=None) -> str:
         text = floor.describe()
     for m in mono:
         m.floor, m.floor_rule = floor, rule
-    return f"rmpl+floor (one view: depth from the floor, body size and time): floor {text}"
+    return (
+        "rmpl+floor (one view: the shipped lifter, depth from the floor, body size and time; "
+        "with the time cue its people are tracked and filtered as rmpl run does; with 2+ "
+        f"views it is rmpl): floor {text}"
+    )
