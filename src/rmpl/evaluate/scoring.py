@@ -201,9 +201,9 @@ def root_metrics(pred: np.ndarray, gt: np.ndarray) -> dict[str, float]:
 
     >>> g = np.zeros((1, 17, 3))
     >>> g[0, [15, 16], 2], g[0, [13, 14], 2], g[0, [11, 12], 2], g[0, [5, 6], 2] = 0, .4, .8, 1.3
-    >>> p = g * 1.1 + [0.3, 0.0, 0.0]
-    >>> {k: round(v, 3) for k, v in root_metrics(p, g).items()}
-    {'root': 300.0, 'height_ratio': 1.1}
+    >>> p = g * 1.1 + [0.3, 0.0, 0.0]  # 10% taller: the pelvis also rises 0.08 m
+    >>> {k: round(v, 3) for k, v in root_metrics(p, g).items()}  # root: hypot(0.3, 0.08)
+    {'root': 310.483, 'height_ratio': 1.1}
     """
     from rmpl.pipeline.monocular import stature_proxy
 
