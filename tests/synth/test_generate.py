@@ -473,3 +473,24 @@ def test_stats_refuses_a_sequence_set(tiny_seq_run, capsys):
     out, _, _ = tiny_seq_run
     assert main(["generate", "--stats", str(out)]) == 2
     assert "single-frame" in capsys.readouterr().err
+
+
+def test_sequences_with_a_detector_that_follows_people(tiny_seq_run, tmp_path):
+    """blazepose-multi follows people: each view is fed as a video (reset, then its frames
+    in order), and the most confident person of each image is kept."""
+    _, cfg, _ = tiny_seq_run
+    from rmpl.data.mhp import load_mhp_sequences
+    from rmpl.synth.generate import follows, make_detector
+
+    pytest.importorskip("rmpl.synth.detect_multi")
+    det = make_detector("blazepose-multi")
+    assert follows(det) and not follows(make_detector("blazepose-multi-static"))
+    assert not follows(make_detector("mediapipe"))
+    det.close()
+    run = dataclasses.replace(cfg, detector="blazepose-multi", num_meshes=1)
+    generate(run, tmp_path / "run", progress=False)
+    d = load_mhp_sequences(tmp_path / "run")
+    assert d["keypoints"].shape == (1, 4, 2, 17, 2)
+    ok = d["scores"] > 0.5
+    err = np.linalg.norm(d["keypoints"] - d["projected"], axis=-1)[ok]
+    assert ok.sum() >= 50 and np.median(err) < MEDIAN_PX, np.median(err)

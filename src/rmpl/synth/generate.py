@@ -23,8 +23,10 @@ frames of one motion segment (its source frames every ``k``-th, ``k`` chosen so 
 rate falls near one drawn log-uniformly in ``sequence_fps``, the playback speed drawn in
 ``sequence_speed``), played by one body (one phenotype, outfit, lighting, mirroring and
 bone perturbation), moving through the room as the mocap root moved, and seen by one rig
-(each camera keeps its background). Every frame is rendered and detected: the detector runs
-on every image afresh (MediaPipe in static-image mode), as ``rmpl run --videos`` runs it.
+(each camera keeps its background). Every frame is rendered and detected, as
+``rmpl run --videos`` would: MediaPipe's legacy ``Pose`` (the default ``detector``) in
+static-image mode on every image afresh; a detector that follows people from frame to frame
+(``blazepose-multi``) on each view's frames in order, as one video.
 The motion is read into ``motion.npz`` (:class:`MotionBank`) instead of ``poses.npz``, the
 manifest's format is :data:`SEQUENCE_FORMAT` and the shards hold
 :data:`SEQUENCE_ARRAYS`; ``num_meshes`` and ``shard_size`` count sequences, and each
@@ -335,17 +337,50 @@ def _shard_meshes(cfg: GenerateConfig, index: int) -> int:
 
 
 def make_detector(name: str):
-    """A detector from :data:`~rmpl.synth.detect.DETECTORS` or a ``module:factory`` spec."""
+    """A detector from :data:`~rmpl.synth.detect.DETECTORS`, from ``rmpl run``'s
+    :data:`~rmpl.pipeline.detect2d.DETECTORS` (e.g. ``blazepose-multi``), or a
+    ``module:factory`` spec."""
+    from rmpl.pipeline.detect2d import DETECTORS as RUN_DETECTORS
     from rmpl.synth.detect import DETECTORS
 
     if name in DETECTORS:
         return DETECTORS[name]()
+    if name in RUN_DETECTORS:
+        return RUN_DETECTORS[name]()
     if ":" in name:
         import importlib
 
         module, attr = name.split(":", 1)
         return getattr(importlib.import_module(module), attr)()
-    raise ValueError(f"unknown detector {name!r}; known: {sorted(DETECTORS)} or 'module:factory'")
+    known = sorted(set(DETECTORS) | set(RUN_DETECTORS))
+    raise ValueError(f"unknown detector {name!r}; known: {known} or 'module:factory'")
+
+
+def follows(detector) -> bool:
+    """Whether ``detector`` follows people from image to image (it has ``reset``, like
+    :class:`rmpl.synth.detect.MultiPersonDetector`; ``track=False`` turns that off)."""
+    return callable(getattr(detector, "reset", None)) and getattr(detector, "track", True)
+
+
+def detect_person(detector, images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The detector's most confident person in each image (one body per scene).
+
+    A single-person detector's output is returned as it is; a detector with a people axis
+    gives, per image, the slot with the largest summed score (others are phantoms or
+    nobody).
+
+    Returns:
+        keypoints (B, 17, 2) pixels, NaN = missed; scores (B, 17).
+    """
+    from rmpl.synth.detect import max_people, with_people_axis
+
+    kp, sc = detector(images)
+    if max_people(detector) == 1:
+        return np.asarray(kp), np.asarray(sc)
+    kp, sc = with_people_axis(detector, kp, sc, len(images))  # (B, N, J, 2), (B, N, J)
+    best = sc.sum(-1).argmax(-1)  # (B,)
+    rows = np.arange(len(images))
+    return kp[rows, best], sc[rows, best]
 
 
 class Worker:
@@ -495,7 +530,7 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
         t1 = time.perf_counter()
         images, occ = _render_batch(worker, posed, rng, occ_rng)
         t2 = time.perf_counter()
-        kp2d, scores = worker.detector(images)
+        kp2d, scores = _detect_apart(worker.detector, images)
         t3 = time.perf_counter()
         times["pose"] += t1 - t0
         times["render"] += t2 - t1
@@ -515,6 +550,18 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
     }
     _write_shard(shard_path(out, index), arrays, stats)
     return stats
+
+
+def _detect_apart(detector, images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Detect images of unrelated scenes: a detector that follows people starts afresh on
+    each image."""
+    if not follows(detector):
+        return detect_person(detector, images)
+    parts = []
+    for im in images:
+        detector.reset()
+        parts.append(detect_person(detector, [im]))
+    return np.concatenate([k for k, _ in parts]), np.concatenate([s for _, s in parts])
 
 
 def _write_shard(path: Path, arrays: dict[str, np.ndarray], stats: dict) -> None:
@@ -923,27 +970,51 @@ def _draw_sequence(worker: Worker, rng: np.random.Generator) -> _Sequence:
 def _render_detect(worker: Worker, seq: _Sequence, rng: np.random.Generator, times: dict):
     """Render every frame from every camera and detect: keypoints (T, V, 17, 2) pixels,
     scores (T, V, 17). One outfit and lighting for the sequence; each camera keeps its
-    background (the same seed for every frame). Frames are detected as they are rendered,
-    so at most V images are held at once."""
+    background.
+
+    A detector that detects every image afresh (MediaPipe's legacy ``Pose``, as
+    ``rmpl run --videos`` runs it by default) gets the V views of one frame at a time. A
+    detector that follows people from frame to frame (:func:`follows`) gets each view as a
+    video: reset, then that view's frames in order; each camera's background then comes from
+    its own seed. Either way at most V images are held at once.
+    """
     from rmpl.synth.render import random_lighting, random_outfits
 
     colors = random_outfits(worker.body.vertex_parts, 1, rng)
     light = random_lighting(rng)
     backdrop = int(rng.integers(0, 2**63 - 1))
-    cams = (seq.K[None], seq.R[None], seq.t[None], seq.size[None])
-    kps, scores = [], []
-    for f in range(len(seq.vertices)):
+    T, V = len(seq.vertices), len(seq.K)
+    kps, scores = np.full((T, V, 17, 2), np.nan, np.float32), np.zeros((T, V, 17), np.float32)
+
+    def run(frame: int, views: slice, seed: int) -> None:
         t0 = time.perf_counter()
         images = worker.renderer.render(
-            seq.vertices[f : f + 1], colors, *cams, lighting=[light], rng=backdrop
+            seq.vertices[frame : frame + 1],
+            colors,
+            seq.K[None, views],
+            seq.R[None, views],
+            seq.t[None, views],
+            seq.size[None, views],
+            lighting=[light],
+            rng=seed,
         )
         t1 = time.perf_counter()
-        kp, sc = worker.detector(images)
+        kp, sc = detect_person(worker.detector, images)
         times["render"] += t1 - t0
         times["detect"] += time.perf_counter() - t1
-        kps.append(np.asarray(kp, np.float32).reshape(len(images), 17, 2))
-        scores.append(np.asarray(sc, np.float32).reshape(len(images), 17))
-    return np.stack(kps), np.stack(scores)
+        kps[frame, views] = np.asarray(kp, np.float32).reshape(len(images), 17, 2)
+        scores[frame, views] = np.asarray(sc, np.float32).reshape(len(images), 17)
+
+    if not follows(worker.detector):
+        for f in range(T):  # the same seed every frame: the same backgrounds
+            run(f, slice(None), backdrop)
+        return kps, scores
+    seeds = np.random.default_rng(backdrop).integers(0, 2**63 - 1, V)
+    for v in range(V):
+        worker.detector.reset()
+        for f in range(T):
+            run(f, slice(v, v + 1), int(seeds[v]))
+    return kps, scores
 
 
 def _sequence_shard(worker: Worker, index: int, first: int, n: int, out: str | Path) -> dict:
@@ -1123,8 +1194,9 @@ def _write_manifest(out: Path, cfg: GenerateConfig, detector: str, extra: dict) 
             "views": cfg.views,
             "fps_range": list(cfg.sequence_fps),
             "speed_range": list(cfg.sequence_speed),
-            "detector_mode": "every image detected afresh (static-image mode, as rmpl run "
-            "--videos); no tracking across frames",
+            "detector_mode": "a detector that follows people (blazepose-multi) sees each "
+            "view's frames in order as one video; any other (mediapipe: static-image mode) "
+            "detects every image afresh; the most confident person per image is kept",
             "per_sequence": "one body (phenotype, outfit, lighting), one motion window, one rig",
         }
     with atomic_path(out / "manifest.json") as tmp:
