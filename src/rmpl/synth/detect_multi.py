@@ -19,8 +19,13 @@ people. The detector's input is square, so in a long image (a portrait 1080 x 19
 people are small in a whole-image view and it misses some: it also looks at square
 windows of the image (:func:`detector_windows`). On a frame where nobody is followed it
 looks at the whole image and every window; where someone was lost, at the whole image;
-otherwise at one of them every ``detect_every`` frames, in turn. A followed person keeps its slot in the people axis
-while the landmark network says it is present.
+otherwise at one of them every ``detect_every`` frames, in turn. A followed person keeps its
+slot in the people axis while the landmark network says it is present. Two crops that
+converge on one person keep one result (the earlier slot's), and a result most of whose
+landmarks lie on a bigger person's bones (the landmark network drawing a small person on
+someone's legs) is dropped. Known limit: where one person stands close in front of another,
+the landmark network can mix the two (a leg of one on the other's body); the 3D stages see
+such a view as disagreeing.
 
 The networks run on MediaPipe's own TFLite runtime (XNNPACK) through the Tasks
 ``ImageEmbedder``, which returns a network's raw output tensors. It needs input
@@ -40,6 +45,7 @@ anchors (2,254), ``n`` detections.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -332,7 +338,9 @@ class _Network:
         import mediapipe as mp
 
         image = mp.Image(image_format=mp.ImageFormat.SRGB, data=np.ascontiguousarray(image))
-        result = self._embedder.embed(image)
+        with warnings.catch_warnings():  # protobuf's deprecation notice, once per process
+            warnings.filterwarnings("ignore", "SymbolDatabase.GetPrototype", UserWarning)
+            result = self._embedder.embed(image)
         return [np.asarray(e.embedding, np.float64) for e in result.embeddings]
 
     def close(self) -> None:
