@@ -353,3 +353,23 @@ def test_opensim_pose2sim_and_trc_data_reader_read_the_trc(tmp_path):
     np.testing.assert_array_equal(t["frames"], mine_full["frame"])
     np.testing.assert_allclose(t["times"], mine_full["time"], atol=1e-9)
     np.testing.assert_allclose(arr(t["points"]).transpose(1, 0, 2), mine_full["points"], atol=1e-9)
+
+
+def test_rmpl_run_writes_the_pose2sim_trial_folder(tmp_path):
+    """rmpl run: OUT/pose-3d/ holds one TRC + C3D per person in Pose2Sim's Y-up axes by
+    default, the world's axes with --pose2sim z-up, nothing with --pose2sim off."""
+    from rmpl.cli import main
+
+    ex = Path(__file__).resolve().parents[2] / "src/rmpl/examples/walk"
+    base = ["run", "--calib", str(ex / "calibration.toml"), "--keypoints",
+            str(ex / "keypoints.json"), "--method", "triangulate", "--no-pictures"]  # fmt: skip
+    assert main([*base, "--out", str(tmp_path / "y")]) in (0, 3)
+    assert main([*base, "--out", str(tmp_path / "z"), "--pose2sim", "z-up"]) in (0, 3)
+    assert main([*base, "--out", str(tmp_path / "off"), "--pose2sim", "off"]) in (0, 3)
+    assert sorted(p.name for p in (tmp_path / "y" / "pose-3d").iterdir()) == [
+        "poses_p0.c3d", "poses_p0.trc"]  # fmt: skip
+    assert not (tmp_path / "off" / "pose-3d").exists()
+    y = read_trc(tmp_path / "y" / "pose-3d" / "poses_p0.trc")
+    z = read_trc(tmp_path / "z" / "pose-3d" / "poses_p0.trc")
+    assert y["markers"] == z["markers"]
+    assert np.allclose(y["points"], z["points"][..., [1, 2, 0]], equal_nan=True)

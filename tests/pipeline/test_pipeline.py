@@ -223,9 +223,5 @@ def test_run_cli_reports_a_blend(tmp_path, caplog):
     assert load_poses(tmp_path / "out" / "poses.json").view_status is not None
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="cli/run.py must return write_all(...).exit_code (remove this mark with that change)",
-)
 def test_run_cli_exits_3_on_a_blend(tmp_path):
     assert main(_blend_files(tmp_path)) == 3

@@ -62,9 +62,10 @@ def old_folder(tmp_path: Path) -> Path:
     return out
 
 
-# The export's os.replace calls: 4 files into the staging folder, the journal, then the
-# commit's moves. Killing at each point covers staging, journal and commit.
-@pytest.mark.parametrize("n", [1, 4, 5, 6, 8, 10])
+# The export's os.replace calls: 4 files into the staging folder, then the 2 Pose2Sim files
+# into its pose-3d/ (the reports are written in place), the journal (7th), then the commit's
+# moves. Killing at each point covers staging, journal and commit.
+@pytest.mark.parametrize("n", [1, 4, 5, 6, 7, 8, 10, 14])
 def test_kill_during_export_leaves_one_complete_set(tmp_path, sets, n):
     out = old_folder(tmp_path)
     args = BASE + ["--out", str(out), *NEW]
@@ -90,7 +91,7 @@ def test_reader_finishes_an_interrupted_commit(tmp_path, sets):
         f"""
         from rmpl.cli import main
         from rmpl.io import atomic
-        kill_at(atomic.os, "replace", 7)
+        kill_at(atomic.os, "replace", 9)
         main({args!r})
         """,
         tmp_path,
@@ -117,4 +118,5 @@ def test_failed_export_keeps_the_old_set(tmp_path, sets, monkeypatch):
     assert main(BASE + ["--out", str(out), *NEW]) == 0
     assert same(outputs(out), sets["new"])  # the old set's BVH went with it
     assert json.loads((out / MANIFEST).read_text())["outputs"] == [
-        "poses.c3d", "poses.json", "poses.npz", "poses.trc"]  # fmt: skip
+        "pose-3d", "poses.c3d", "poses.json", "poses.npz", "poses.trc", "report.json",
+        "report.md"]  # fmt: skip

@@ -79,7 +79,8 @@ def os_error_message(e: OSError) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; returns the exit code: 0 success, 2 bad input (an option, a file, a
-    filesystem error, or a result with nothing estimated), one line on stderr."""
+    filesystem error, or a result with nothing estimated), one line on stderr; 3 (``rmpl
+    run``) a person's views disagree in most frames, outputs written."""
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO, format="%(message)s")

@@ -25,6 +25,15 @@ default: the calibration's convention), a body-size prior and each track's const
 (rmpl.pipeline.monocular); the log says how much of each, and poses.npz/json hold the
 per-joint uncertainty (the 50% radius of the depth error).
 
+Besides the exports, OUT gets report.md and report.json (reprojection errors per joint, how
+often each camera was excluded or missed, each person's frames, filled gaps and height, and
+the view check) and OUT/pose-3d/ one TRC + C3D per person for Pose2Sim's kinematics
+(--pose2sim).
+
+Exit status: 0 done; 2 bad input; 3 a person's views disagree in most frames (its 3D is most
+likely a blend of different people, or a camera is off): the outputs are written and
+report.md names the cameras and frames.
+
 Examples:
   rmpl run --calib Calib.qca.txt --keypoints pose/ --out results/
   rmpl run --calib calibration.json --keypoints shelf_dev/ --out shelf/ --method robust
@@ -97,6 +106,13 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--formats",
         default="npz,json,trc,c3d",
         help=f"any of {','.join(FORMATS)} (BVH: one file per person, poses_p<id>.bvh)",
+    )
+    parser.add_argument(
+        "--pose2sim",
+        default="pose2sim-y-up",
+        choices=["pose2sim-y-up", "z-up", "off"],
+        help="one TRC + C3D per person in OUT/pose-3d/ for Pose2Sim/OpenSim (COCO_17 marker "
+        "names): in Pose2Sim's Y-up axes (default), the world's Z-up axes, or off",
     )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(
@@ -174,5 +190,14 @@ def run(args: argparse.Namespace) -> int:
         overlays = functools.partial(
             write_input_overlays, args.videos or args.images, kind, poses, inputs
         )
-    write_all(poses, inputs, out, formats, pictures=not args.no_pictures, overlays=overlays)
+    report = write_all(
+        poses,
+        inputs,
+        out,
+        formats,
+        pictures=not args.no_pictures,
+        overlays=overlays,
+        pose2sim=None if args.pose2sim == "off" else args.pose2sim,
+    )
+    return report.exit_code  # 3: a person's views disagree in most frames (outputs written)
     return 0

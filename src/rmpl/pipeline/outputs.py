@@ -82,15 +82,26 @@ def _write_bvh(poses, out: Path) -> None:
             log.warning("skipping %s: %s", name, e)
 
 
-def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = True, overlays=None):
+def write_all(
+    poses,
+    inputs,
+    out: Path,
+    formats: list[str],
+    pictures: bool = True,
+    overlays=None,
+    pose2sim: str | None = "pose2sim-y-up",
+):
     """The run report, every requested export plus the viewer page, the pictures and
     ``overlays(folder)``, committed into ``out`` as one set
     (:func:`rmpl.io.atomic.staged_folder`): after a failure or a kill, ``out`` holds the
     previous complete set or this one, never a mix.
 
     The exports carry each person's height and the view check's per-view status
-    (:func:`rmpl.pipeline.report.build_report`). A summary is logged after the commit; a
-    person whose views disagree in most frames gets a WARNING banner.
+    (:func:`rmpl.pipeline.report.build_report`). With ``pose2sim`` (an orientation of
+    :func:`rmpl.io.pose2sim.write_pose2sim`; None: off) and a frame rate, ``out/pose-3d/``
+    gets one TRC and one C3D per person for Pose2Sim's kinematics (OpenSim scaling + IK).
+    A summary is logged after the commit; a person whose views disagree in most frames gets
+    a WARNING banner.
 
     Returns:
         The :class:`rmpl.pipeline.report.RunReport`; its ``exit_code`` (0 or 3) is what
@@ -103,6 +114,8 @@ def write_all(poses, inputs, out: Path, formats: list[str], pictures: bool = Tru
     poses = report.poses
     with staged_folder(out) as stage:
         _export(poses, stage, formats)
+        if pose2sim is not None:
+            _export_pose2sim(poses, stage, pose2sim)
         write_report(report, stage)
         ok = np.isfinite(poses.points).all(-1)
         if pictures:
@@ -133,6 +146,21 @@ def _export(poses, out: Path, formats: list[str]) -> None:
             _write_bvh(poses, out)
             continue
         save_poses(poses, out / f"poses.{fmt}")
+
+
+def _export_pose2sim(poses, out: Path, orientation: str) -> None:
+    """Per-person Pose2Sim files in ``out/pose-3d/``; a run they cannot describe (no frame
+    rate, nobody with every IK marker in some frame) is said, not fatal."""
+    from rmpl.errors import InputError
+    from rmpl.io.pose2sim import write_pose2sim
+
+    if not poses.fps:
+        log.warning("skipping the Pose2Sim files (pose-3d/): no frame rate (give --fps)")
+        return
+    try:
+        write_pose2sim(poses, out / "pose-3d", stem="poses", orientation=orientation)
+    except InputError as e:
+        log.warning("skipping the Pose2Sim files (pose-3d/): %s", e)
 
 
 def _pictures(poses, inputs, out: Path, ok: np.ndarray) -> None:
