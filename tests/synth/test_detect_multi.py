@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rmpl.skeleton import COCO17
 from rmpl.synth.detect import Detector, MultiPersonDetector, max_people, with_people_axis
 from rmpl.synth.detect_multi import (
     box_iou,
@@ -90,7 +91,7 @@ def test_detector_windows_tile_long_images():
 
 def test_people_axis_for_single_and_multi_person_detectors():
     class One:
-        name, skeleton = "one", __import__("rmpl.skeleton").skeleton.COCO17
+        name, skeleton = "one", COCO17
 
     class Many(One):
         name, max_people = "many", 3
