@@ -494,3 +494,126 @@ def test_sequences_with_a_detector_that_follows_people(tiny_seq_run, tmp_path):
     ok = d["scores"] > 0.5
     err = np.linalg.norm(d["keypoints"] - d["projected"], axis=-1)[ok]
     assert ok.sum() >= 50 and np.median(err) < MEDIAN_PX, np.median(err)
+
+
+# --------------------------------------------------------------------- multi-person scenes
+
+
+@pytest.mark.parametrize(
+    "override, field",
+    [
+        ({"people": [0, 2]}, "people"),
+        ({"people": [3, 2]}, "people"),
+        ({"people": [2, 9]}, "people"),
+        ({"people": [2.0, 3]}, "people"),
+        ({"people": [2]}, "people"),
+        ({"people": [2, 3], "sequence_frames": 8, "poses": "m.npz"}, "sequence_frames"),
+        ({"people": [2, 3], "occlusion_rate": 0.1}, "occlusion_rate"),
+    ],
+)
+def test_bad_scene_config_names_the_field(tmp_path, override, field):
+    with pytest.raises(InputError, match=f"field '{field}'"):
+        GenerateConfig.from_dict(override, tmp_path / "scene.toml")
+    assert GenerateConfig.from_dict({"people": [2, 4]}).scenes
+    assert not GenerateConfig.from_dict({"people": [1, 1]}).scenes
+
+
+def test_match_detections_pairs_slots_with_bodies():
+    from rmpl.synth.generate import match_detections
+
+    rng = np.random.default_rng(0)
+    bodies = np.stack([rng.uniform(0, 100, (17, 2)), rng.uniform(300, 400, (17, 2))])
+    kp = np.full((4, 17, 2), np.nan)
+    sc = np.zeros((4, 17))
+    kp[0], sc[0] = bodies[1] + rng.normal(0, 3, (17, 2)), 0.9  # body 1, a few px off
+    kp[1, :5], sc[1, :5] = bodies[0, :5] + 2.0, 0.8  # body 0, five joints
+    kp[2], sc[2] = bodies[0] + 200.0, 0.7  # nobody's: far from both
+    # slot 3 is empty
+    got = match_detections(kp, sc, bodies, np.array([True, True]))
+    assert got.tolist() == [1, 0, -1, -1] and got.dtype == np.int8
+    # An absent body is nobody's match.
+    assert match_detections(kp, sc, bodies, np.array([True, False])).tolist() == [-1, 0, -1, -1]
+
+
+def test_spread_keeps_people_apart():
+    from rmpl.synth.generate import spread
+
+    where = spread(4, 1.0, np.random.default_rng(1))
+    d = np.linalg.norm(where[:, None] - where[None], axis=-1)[np.triu_indices(4, 1)]
+    assert where.shape == (4, 2) and np.abs(where).max() <= 1.0 and d.min() >= 0.6
+
+
+def test_render_scene_bodies_hide_each_other():
+    """Two boxes on one camera's axis: the nearer hides the middle of the farther, whatever
+    the drawing order; one body alone renders as Renderer.render draws it."""
+    pytest.importorskip("moderngl")
+    from rmpl.geometry.camera import look_at
+    from rmpl.synth.render import Renderer
+    from tests.synth.test_render import _box
+
+    near, faces = _box([0.0, -1.0, 1.0], [0.2, 0.2, 0.2])
+    far, _ = _box([0.0, 1.0, 1.0], [0.6, 0.2, 0.6])
+    try:
+        r = Renderer(faces, len(near))
+    except Exception as e:  # no EGL driver on this machine
+        pytest.skip(f"no headless OpenGL context: {e}")
+    K = np.array([[[[400.0, 0, 160], [0, 400, 120], [0, 0, 1]]]])
+    R, t = look_at(np.array([0.0, -4.0, 1.0]), np.array([0.0, 0.0, 1.0]))
+    R, t, size = R[None, None], t[None, None], np.array([[[320, 240]]])
+    colors = np.full((1, 2, len(near), 3), 0.7, np.float32)
+    try:
+        for order in ([near, far], [far, near]):
+            images, ids = r.render_scene(np.stack(order)[None], colors, K, R, t, size, rng=0)
+            mask = ids[0]
+            front, back = (0, 1) if order[0] is near else (1, 0)
+            assert mask.dtype == np.int16 and mask.shape == (240, 320)
+            assert mask[120, 160] == front  # the image centre: the near box
+            assert mask[120, 160 + 40] == back  # beside it: the far box sticks out
+            assert mask[5, 5] == -1 and set(np.unique(mask)) == {-1, 0, 1}
+        # One body: the same image as render(), and its mask.
+        one, ids = r.render_scene(near[None, None], colors[:, :1], K, R, t, size, rng=3)
+        ref, masks = r.render(near[None], colors[:, 0], K, R, t, size, rng=3, return_masks=True)
+        np.testing.assert_array_equal(one[0], ref[0])
+        np.testing.assert_array_equal(ids[0] == 0, masks[0])
+    finally:
+        r.close()
+
+
+def test_tiny_multi_person_scenes(tmp_path):
+    _needs_synth()
+    from rmpl.geometry.camera import project
+    from rmpl.synth.generate import SCENE_FORMAT
+
+    cfg = GenerateConfig.from_dict(
+        {**TINY, "num_meshes": 2, "views": 2, "shard_size": 2, "image_size": [480, 480],
+         "people": [2, 2], "detector": "blazepose-multi-static"}
+    )  # fmt: skip
+    summary = generate(cfg, tmp_path, progress=False)
+    assert summary["scenes"] == 2 and summary["meshes"] == 4 and summary["views"] == 4
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["format"] == SCENE_FORMAT and manifest["config"]["people"] == [2, 2]
+    with np.load(shard_path(tmp_path, 0)) as z:
+        d = {k: z[k] for k in z.files}
+    assert d["joints3d"].shape == (2, 2, 17, 3) and d["present"].all()
+    assert d["keypoints"].shape == (2, 2, 4, 17, 2) and d["match"].shape == (2, 2, 4)
+    assert d["projected"].shape == (2, 2, 2, 17, 2) and d["hidden"].shape == (2, 2, 2, 17)
+    # Two bodies, apart on the floor, each projected by the scene's cameras.
+    hips = d["joints3d"][:, :, 11:13].mean(2)
+    assert (np.linalg.norm(hips[:, 0, :2] - hips[:, 1, :2], axis=-1) >= 0.6).all()
+    uv = project(
+        d["joints3d"][:, None].astype(float),
+        d["K"][:, :, None, None],
+        d["R"][:, :, None, None],
+        d["t"][:, :, None, None],
+    )
+    np.testing.assert_allclose(uv, d["projected"], atol=1e-2)
+    # The detector finds people, and each found person is matched to a body it lies on.
+    found = d["scores"].max(-1) > 0  # (M, V, N)
+    assert found.sum() >= 3, found.sum()
+    m = d["match"]
+    assert (m[found] >= 0).mean() >= 0.75 and (m[~found] == -1).all()
+    s, v, n = np.nonzero(m >= 0)
+    err = np.linalg.norm(d["keypoints"][s, v, n] - d["projected"][s, v, m[s, v, n]], axis=-1)
+    assert np.nanmedian(err[d["scores"][s, v, n] > 0.5]) < MEDIAN_PX
+    # A second run finds the set finished.
+    assert generate(cfg, tmp_path, progress=False)["this_run"]["views"] == 0

@@ -75,6 +75,11 @@ _MOTION_FORMAT = "rmpl.mhp.motion.v1"
 #: Config keys that only sequence sets have (left out of a single-frame set's manifest,
 #: which stays as it was before sequences existed).
 _SEQUENCE_KEYS = ("sequence_frames", "sequence_fps", "sequence_speed")
+#: The manifest format of a multi-person scene set (``people`` up to 2 or more).
+SCENE_FORMAT = "rmpl.mhp.scenes.v1"
+#: A detection slot is of a body when its keypoints lie within this fraction of the body's
+#: projected size of the body's projected joints (median over the detected joints).
+MATCH_TOLERANCE = 0.2
 
 #: Arrays of a shard: name -> (shape, meaning).
 SHARD_ARRAYS: dict[str, tuple[str, str]] = {
@@ -112,6 +117,27 @@ SEQUENCE_ARRAYS: dict[str, tuple[str, str]] = {
     "clip": ("(S,) str", "source clip (path under the motion folder)"),
     "frame": ("(S, T) int64", "source frame of each frame in the clip"),
     "mirrored": ("(S,) bool", "the motion was mirrored left/right"),
+}
+
+#: Arrays of a multi-person scene shard (``M`` scenes, ``P`` body slots = ``people[1]``,
+#: ``N`` detector slots = the detector's ``max_people``): name -> (shape, meaning).
+SCENE_ARRAYS: dict[str, tuple[str, str]] = {
+    "joints3d": ("(M, P, 17, 3) float32", "COCO-17 joints of each body, world metres, NaN = none"),
+    "present": ("(M, P) bool", "the body slot holds a body"),
+    "keypoints": ("(M, V, N, 17, 2) float32", "detections, unassociated, pixels, NaN = missed"),
+    "scores": ("(M, V, N, 17) float32", "detector confidence, 0 = missed or outside"),
+    "match": ("(M, V, N) int8", "the body a detection is of (by the projections), -1 = none"),
+    "projected": ("(M, V, P, 17, 2) float32", "joints3d projected into each view, pixels"),
+    "hidden": ("(M, V, P, 17) bool", "the joint's pixel shows another body (mutual occlusion)"),
+    "K": ("(M, V, 3, 3) float64", "intrinsics, pixels"),
+    "R": ("(M, V, 3, 3) float64", "world-to-camera rotation"),
+    "t": ("(M, V, 3) float64", "world-to-camera translation, metres"),
+    "size": ("(M, V, 2) int32", "image (width, height), pixels"),
+    "phenotypes": ("(M, P, 6) float32", "anny phenotypes"),
+    "subject": ("(M, P) str", "source subject id ('random' for random poses, '' = none)"),
+    "clip": ("(M, P) str", "source clip"),
+    "frame": ("(M, P) int64", "source frame (-1 for random poses or none)"),
+    "mirrored": ("(M, P) bool", "the pose was mirrored left/right"),
 }
 
 
@@ -152,6 +178,8 @@ class GenerateConfig:
         sequence_fps: ``[low, high]`` frames per second, drawn log-uniformly per sequence and
             rounded to a whole step of source frames (CMU: 120 / k).
         sequence_speed: ``[low, high]`` playback speed, uniform per sequence (1 = real time).
+        people: ``[low, high]`` bodies per scene, uniform; ``[1, 1]`` = one body. With more,
+            ``num_meshes`` and ``shard_size`` count scenes (see :data:`SCENE_ARRAYS`).
     """
 
     poses: str = "random"
@@ -177,6 +205,7 @@ class GenerateConfig:
     sequence_frames: int = 0
     sequence_fps: tuple[float, ...] = (10.0, 60.0)
     sequence_speed: tuple[float, ...] = (1.0, 1.0)
+    people: tuple[int, ...] = (1, 1)
 
     @classmethod
     def from_dict(cls, d: dict, path: str | Path | None = None) -> GenerateConfig:
@@ -229,7 +258,7 @@ class GenerateConfig:
             ("max_tries", cfg.max_tries >= 1, ">= 1"),
             ("poses", bool(cfg.poses), "a motion folder, a pose bank .npz or 'random'"),
         ]
-        checks += _sequence_checks(cfg)
+        checks += _sequence_checks(cfg) + _scene_checks(cfg)
         for name, ok, expected in checks:
             if not ok:
                 raise InputError(path, name, expected, repr(getattr(cfg, name)))
@@ -239,6 +268,11 @@ class GenerateConfig:
     def sequences(self) -> bool:
         """Whether this config makes sequences (``sequence_frames >= 2``)."""
         return self.sequence_frames >= 2
+
+    @property
+    def scenes(self) -> bool:
+        """Whether this config makes multi-person scenes (``people[1] >= 2``)."""
+        return len(self.people) == 2 and self.people[1] >= 2
 
     @classmethod
     def from_toml(cls, path: str | Path, overrides: list[str] | None = None) -> GenerateConfig:
@@ -293,19 +327,35 @@ def _sequence_checks(cfg: GenerateConfig) -> list[tuple[str, bool, str]]:
     ]
 
 
+def _scene_checks(cfg: GenerateConfig) -> list[tuple[str, bool, str]]:
+    """(field, ok, expected) of the multi-person scene options."""
+    p = cfg.people
+    ok = len(p) == 2 and all(type(v) is int for v in p) and 1 <= p[0] <= p[1] <= 8
+    return [
+        ("people", ok, "[low, high] bodies per scene, 1 <= low <= high <= 8"),
+        ("sequence_frames", not (ok and cfg.scenes and cfg.sequences),
+         "0 or 1 with people above 1 (multi-person sequences are not made yet)"),
+        ("occlusion_rate", not (ok and cfg.scenes) or cfg.occlusion_rate == 0,
+         "0 with people above 1 (the bodies occlude each other)"),
+    ]  # fmt: skip
+
+
 def _config_dict(cfg: GenerateConfig) -> dict:
-    """The config as the manifest stores it: a single-mesh config without the sequence keys,
-    so its manifest is the one written before sequences existed."""
+    """The config as the manifest stores it: a single-mesh config without the sequence and
+    scene keys, so its manifest is the one written before they existed."""
     d = asdict(cfg)
     if not cfg.sequences:
         for key in _SEQUENCE_KEYS:
             d.pop(key)
+    if not cfg.scenes:
+        d.pop("people")
     return d
 
 
 def shard_arrays(cfg: GenerateConfig) -> dict[str, tuple[str, str]]:
-    """The arrays of this config's shards: :data:`SEQUENCE_ARRAYS` or :data:`SHARD_ARRAYS`."""
-    return SEQUENCE_ARRAYS if cfg.sequences else SHARD_ARRAYS
+    """The arrays of this config's shards: :data:`SEQUENCE_ARRAYS`, :data:`SCENE_ARRAYS` or
+    :data:`SHARD_ARRAYS`."""
+    return SEQUENCE_ARRAYS if cfg.sequences else SCENE_ARRAYS if cfg.scenes else SHARD_ARRAYS
 
 
 def shard_path(out: str | Path, index: int) -> Path:
@@ -516,6 +566,8 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
         raise ValueError(f"shard {index} is beyond num_meshes={cfg.num_meshes}")
     if cfg.sequences:
         return _sequence_shard(worker, index, first, n, out)
+    if cfg.scenes:
+        return _scene_shard(worker, index, first, n, out)
     rng = np.random.default_rng([cfg.seed, index])
     # The squares draw from their own stream: a set made with occlusion_rate > 0 has the
     # same meshes, cameras and images as the one made without (a paired experiment).
@@ -1067,6 +1119,167 @@ def _sequence_shard(worker: Worker, index: int, first: int, n: int, out: str | P
     return stats
 
 
+# ---------------------------------------------------------------------------- scenes
+
+
+def spread(n: int, room: float, rng: np.random.Generator, gap: float = 0.6) -> np.ndarray:
+    """n floor positions uniform within +-``room`` metres, at least ``gap`` metres apart
+    (redrawn up to 100 times; then the last draw is kept). Returns (n, 2) metres."""
+    for _ in range(100):
+        where = rng.uniform(-room, room, (n, 2))
+        d = np.linalg.norm(where[:, None] - where[None], axis=-1) + np.eye(n) * 1e9
+        if d.min() >= gap:
+            break
+    return where
+
+
+def match_detections(
+    keypoints: np.ndarray, scores: np.ndarray, projected: np.ndarray, present: np.ndarray
+) -> np.ndarray:
+    """Which body each detection slot of one image is of, by the projected joints.
+
+    The cost of (slot, body) is the median pixel distance over the slot's detected joints,
+    divided by the body's projected size (the larger side of its joints' box); slots and
+    bodies are paired by the Hungarian method, and a pair counts when its cost is below
+    :data:`MATCH_TOLERANCE`.
+
+    Args:
+        keypoints: (N, J, 2) pixels; scores: (N, J), 0 = missing.
+        projected: (P, J, 2) pixels; present: (P,) bool.
+
+    Returns:
+        (N,) int8: the body index, -1 for none.
+    """
+    import warnings
+
+    from scipy.optimize import linear_sum_assignment
+
+    size = np.ptp(projected, axis=1).max(-1).clip(1.0, None)  # (P,)
+    dist = np.linalg.norm(keypoints[:, None] - projected[None], axis=-1)  # (N, P, J)
+    dist = np.where((scores > 0)[:, None], dist, np.nan)
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # empty slots, absent bodies
+        cost = np.nanmedian(dist, axis=-1) / size  # (N, P)
+    cost = np.where(present[None] & np.isfinite(cost), cost, 1e6)
+    out = np.full(len(keypoints), -1, np.int8)
+    for n, p in zip(*linear_sum_assignment(cost), strict=True):
+        if cost[n, p] < MATCH_TOLERANCE:
+            out[n] = p
+    return out
+
+
+def _hidden(ids: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Joints (P, J) whose pixel shows another body. ids: (H, W) body per pixel, -1 none;
+    uv: (P, J, 2) pixels."""
+    h, w = ids.shape
+    x, y = np.rint(np.nan_to_num(uv, nan=-1.0)).astype(int).transpose(2, 0, 1)  # (P, J) each
+    inside = (x >= 0) & (x < w) & (y >= 0) & (y < h)
+    shown = ids[y.clip(0, h - 1), x.clip(0, w - 1)]  # (P, J)
+    own = np.arange(len(uv))[:, None]
+    return inside & (shown >= 0) & (shown != own)
+
+
+def _scene(worker: Worker, index: int, rng: np.random.Generator, times: dict) -> tuple[dict, int]:
+    """Scene ``index``: its row of every :data:`SCENE_ARRAYS` array, and the implausible
+    poses replaced."""
+    from rmpl.geometry.camera import project
+    from rmpl.synth.body import place_bodies
+    from rmpl.synth.cameras import sample_cameras
+    from rmpl.synth.render import random_outfits
+
+    cfg, V = worker.cfg, worker.cfg.views
+    P = cfg.people[1]
+    t0 = time.perf_counter()
+    k = int(rng.integers(cfg.people[0], P + 1))
+    verts, kps, meta, rejected = _draw_poses(worker, k, index * P, rng)
+    verts, kps = place_bodies(verts, kps, rng.uniform(-np.pi, np.pi, k), spread(k, cfg.room, rng))
+    center = kps[:, 11:13].mean(axis=(0, 1)).astype(float)  # the group's mean mid-hip
+    K, R, t, size = (a[0] for a in sample_cameras(V, center[None], cfg.camera_preset, rng))
+    if cfg.image_size:
+        K, size = _scale_cameras(K, size, tuple(cfg.image_size))
+    proj = project(kps[None].astype(float), K[:, None, None], R[:, None, None], t[:, None, None])
+    colors = random_outfits(worker.body.vertex_parts, k, rng)
+    t1 = time.perf_counter()
+    images, ids = worker.renderer.render_scene(
+        verts[None], colors[None], K[None], R[None], t[None], size[None], rng=rng
+    )
+    t2 = time.perf_counter()
+    kp, sc = _detect_people_apart(worker.detector, images)  # (V, N, J, 2), (V, N, J)
+    times["pose"] += t1 - t0
+    times["render"] += t2 - t1
+    times["detect"] += time.perf_counter() - t2
+
+    def pad(a: np.ndarray, fill) -> np.ndarray:  # k bodies -> P slots
+        return np.concatenate([a, np.full((P - k, *a.shape[1:]), fill, a.dtype)])
+
+    present = np.arange(P) < k
+    proj_p = np.stack([pad(proj[v], np.nan) for v in range(V)])  # (V, P, J, 2)
+    phen, subject, clip, frame, mirrored = (np.asarray(x) for x in zip(*meta, strict=True))
+    row = {
+        "joints3d": pad(kps.astype(np.float32), np.nan),
+        "present": present,
+        "keypoints": kp.astype(np.float32),
+        "scores": sc.astype(np.float32),
+        "match": np.stack([match_detections(kp[v], sc[v], proj_p[v], present) for v in range(V)]),
+        "projected": proj_p.astype(np.float32),
+        "hidden": np.stack([_hidden(ids[v], proj_p[v]) for v in range(V)]),
+        "K": K,
+        "R": R,
+        "t": t,
+        "size": size.astype(np.int32),
+        "phenotypes": pad(phen.astype(np.float32), 0.0),
+        "subject": pad(subject.astype(str), ""),
+        "clip": pad(clip.astype(str), ""),
+        "frame": pad(frame.astype(np.int64), -1),
+        "mirrored": pad(mirrored.astype(bool), False),
+    }
+    return row, rejected
+
+
+def _detect_people_apart(detector, images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Every person the detector finds in images of unrelated scenes: keypoints (B, N, J, 2)
+    and scores (B, N, J), N = its ``max_people`` (1 for a single-person detector)."""
+    from rmpl.synth.detect import with_people_axis
+
+    if not follows(detector):
+        return with_people_axis(detector, *detector(images), len(images))
+    parts = []
+    for im in images:
+        detector.reset()
+        parts.append(with_people_axis(detector, *detector([im]), 1))
+    return np.concatenate([k for k, _ in parts]), np.concatenate([s for _, s in parts])
+
+
+def _scene_shard(worker: Worker, index: int, first: int, n: int, out: str | Path) -> dict:
+    """Scenes ``first .. first + n - 1`` as shard ``index`` (see :func:`generate_shard`)."""
+    cfg = worker.cfg
+    times = {"pose": 0.0, "render": 0.0, "detect": 0.0}
+    parts: dict[str, list] = {k: [] for k in SCENE_ARRAYS}
+    rejected = 0
+    for i in range(first, first + n):
+        rng = np.random.default_rng([cfg.seed, i, 3])  # a scene is the same in any shard
+        row, bad = _scene(worker, i, rng, times)
+        rejected += bad
+        for key, value in row.items():
+            parts[key].append(value)
+    arrays = {k: np.stack(v) for k, v in parts.items()}
+    found = arrays["scores"].max(-1) > 0  # (M, V, N)
+    stats = {
+        "shard": index,
+        "scenes": n,
+        "meshes": int(arrays["present"].sum()),
+        "views": n * cfg.views,
+        "rejected": rejected,
+        "missed_joints": int((arrays["scores"] == 0).sum()),
+        "missed_views": int((~found.any(-1)).sum()),
+        "people_found": int(found.sum()),
+        "people_matched": int((arrays["match"] >= 0).sum()),
+        "seconds": times,
+    }
+    _write_shard(shard_path(out, index), arrays, stats)
+    return stats
+
+
 # --------------------------------------------------------------------------- the driver
 
 _WORKER: Worker | None = None
@@ -1175,7 +1388,7 @@ def _bank_arrays(bank) -> tuple[np.ndarray, ...]:
 
 def _write_manifest(out: Path, cfg: GenerateConfig, detector: str, extra: dict) -> None:
     manifest = {
-        "format": SEQUENCE_FORMAT if cfg.sequences else FORMAT,
+        "format": SEQUENCE_FORMAT if cfg.sequences else SCENE_FORMAT if cfg.scenes else FORMAT,
         "config": _config_dict(cfg),
         "detector": detector,
         "skeleton": "coco17",
@@ -1188,6 +1401,15 @@ def _write_manifest(out: Path, cfg: GenerateConfig, detector: str, extra: dict) 
         "versions": _versions(),
         **extra,
     }
+    if cfg.scenes:
+        manifest["scenes"] = {
+            "people": list(cfg.people),
+            "views": cfg.views,
+            "detections": "every person the detector finds per image (N slots, unassociated); "
+            "match pairs them with the bodies by the projected joints",
+            "spacing": "mid-hips at least 0.6 m apart on the floor; cameras aimed at the "
+            "group's mean mid-hip",
+        }
     if cfg.sequences:
         manifest["sequences"] = {
             "frames": cfg.sequence_frames,
@@ -1234,7 +1456,7 @@ def summarize(out: str | Path) -> dict:
         "missed_views": 0,
     }
     seconds = {"pose": 0.0, "render": 0.0, "detect": 0.0}
-    sequences = None
+    extra: dict[str, int] = {}  # counts only sequence or scene shards have
     for p in list_shards(out):
         with np.load(p, allow_pickle=False) as z:
             s = json.loads(str(z["stats"]))
@@ -1243,11 +1465,12 @@ def summarize(out: str | Path) -> dict:
             totals[k] += s[k]
         for k in seconds:
             seconds[k] += s["seconds"][k]
-        if "sequences" in s:
-            sequences = (sequences or 0) + s["sequences"]
-    if sequences is not None:  # a sequence set: meshes are its frames, views its renders
-        totals["sequences"] = sequences
-    return {**totals, "stage_seconds": seconds}
+        for k in ("sequences", "scenes", "people_found", "people_matched"):
+            if k in s:
+                extra[k] = extra.get(k, 0) + s[k]
+    # A sequence set's meshes are its frames, its views its renders; a scene set's meshes
+    # are its bodies, its views its images.
+    return {**totals, **extra, "stage_seconds": seconds}
 
 
 def generate(
@@ -1422,6 +1645,8 @@ def _finish(
     what = f"{summary['meshes']} meshes"
     if cfg.sequences:
         what = f"{summary['sequences']} sequences x {cfg.sequence_frames} frames"
+    elif cfg.scenes:
+        what = f"{summary['scenes']} scenes of {summary['meshes']} bodies"
     log.info(
         "%s: %s x %d views in %d shards (%d %s rejected); this run %d (mesh, view) "
         "samples in %.1f s = %.2f samples/s",

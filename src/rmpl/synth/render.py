@@ -11,10 +11,14 @@ downloaded), and each body a random outfit (per-part vertex colours from
 :data:`rmpl.synth.body.PARTS`) and random lighting (one key and one fill light, shared by all
 views of a body, plus ambient).
 
+:meth:`Renderer.render_scene` draws several bodies into each image with one depth buffer, so
+they hide each other, and returns which body each pixel shows (an id mask).
+
 Needs ``moderngl`` and an EGL driver (Debian: ``libegl1 libgl1-mesa-dri libegl-mesa0``;
 software Mesa ``llvmpipe`` works, no GPU or display needed).
 
-Shape glossary: ``B`` bodies, ``V`` views per body, ``N`` vertices, ``F`` faces.
+Shape glossary: ``B`` bodies (scenes), ``P`` bodies in a scene, ``V`` views per body (scene),
+``N`` vertices, ``F`` faces.
 """
 
 from __future__ import annotations
@@ -58,6 +62,7 @@ uniform vec3 light_color[2];
 uniform vec3 ambient;
 uniform float specular;
 uniform float shininess;
+uniform float body_alpha;  // 1 for one body; (person + 1) / 255 in a scene (an id mask)
 in vec3 v_world;
 in vec3 v_normal;
 in vec3 v_color;
@@ -73,7 +78,7 @@ void main() {
         float spec = specular * pow(max(dot(n, h), 0.0), shininess) * float(diffuse > 0.0);
         c += light_color[i] * (v_color * diffuse + spec);
     }
-    f_color = vec4(clamp(c, 0.0, 1.0), 1.0);
+    f_color = vec4(clamp(c, 0.0, 1.0), body_alpha);
 }
 """
 
@@ -413,6 +418,7 @@ class Renderer:
         self._bg_vbo = self.ctx.buffer(quad.tobytes())
         self._bg_vao = self.ctx.vertex_array(self._bg_prog, [(self._bg_vbo, "2f", "in_xy")])
         self._targets: dict[tuple[int, int], tuple] = {}
+        self._prog["body_alpha"].value = 1.0
 
     def close(self) -> None:
         """Release the OpenGL context."""
@@ -496,9 +502,15 @@ class Renderer:
 
     def _draw_view(self, K, R, t, size, backgrounds: bool, rng: np.random.Generator):
         """The loaded body seen by one camera: RGBA, shape (H, W, 4) uint8, alpha = body."""
+        self._begin_view(K, R, t, size, backgrounds, rng)
+        self._vao.render(self._mgl.TRIANGLES)
+        return self._read_view(size)
+
+    def _begin_view(self, K, R, t, size, backgrounds: bool, rng: np.random.Generator) -> None:
+        """Clear the view's target, draw its background, and set its camera."""
         ctx = self.ctx
         w, h = int(size[0]), int(size[1])
-        draw, read = self._target((w, h))
+        draw, _ = self._target((w, h))
         draw.use()
         ctx.viewport = (0, 0, w, h)
         ctx.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -509,10 +521,86 @@ class Renderer:
         self._prog["mvp"].write(mvp.T.astype(np.float32).tobytes())
         eye = -R.T @ t
         self._prog["eye"].value = tuple(float(x) for x in eye)
-        self._vao.render(self._mgl.TRIANGLES)
+
+    def _read_view(self, size) -> np.ndarray:
+        """The drawn view: RGBA, shape (H, W, 4) uint8."""
+        w, h = int(size[0]), int(size[1])
+        draw, read = self._target((w, h))
         if draw is not read:
-            ctx.copy_framebuffer(read, draw)
+            self.ctx.copy_framebuffer(read, draw)
         return np.frombuffer(read.read(components=4), np.uint8).reshape(h, w, 4)
+
+    def render_scene(
+        self,
+        vertices: np.ndarray,
+        colors: np.ndarray,
+        K: np.ndarray,
+        R: np.ndarray,
+        t: np.ndarray,
+        size: np.ndarray,
+        present: np.ndarray | None = None,
+        lighting: list[Lighting] | None = None,
+        backgrounds: bool = True,
+        rng: np.random.Generator | int | None = None,
+    ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Render scenes of several bodies, which hide each other, from each scene's cameras.
+
+        Args:
+            vertices: shape (B, P, N, 3), world metres. colors: (B, P, N, 3) in [0, 1].
+            K: (B, V, 3, 3) pixels. R: (B, V, 3, 3). t: (B, V, 3) metres.
+            size: image (width, height) per view, shape (B, V, 2), pixels.
+            present: (B, P) bool, the bodies each scene holds (None: all); at most 254.
+            lighting: one :class:`Lighting` per scene, or None for random lighting.
+            backgrounds: draw procedural backgrounds; otherwise black.
+            rng: numpy Generator or seed, for lighting and backgrounds.
+
+        Returns:
+            B * V RGB images, scene-major (image ``b * V + v``), each (H, W, 3) uint8, and as
+            many id masks (H, W) int16: the body each pixel shows, -1 for the background
+            (exact without multisampling; with it, edge pixels may name a neighbour).
+        """
+        vertices = np.asarray(vertices, dtype=np.float32)
+        colors = np.asarray(colors, dtype=np.float32)
+        if vertices.ndim != 4 or colors.shape != vertices.shape:
+            raise ValueError(
+                f"vertices and colors must have one shape (B, P, N, 3), got {vertices.shape} "
+                f"and {colors.shape}"
+            )
+        B, P, N = vertices.shape[:3]
+        present = np.ones((B, P), bool) if present is None else np.asarray(present, bool)
+        if present.shape != (B, P) or P > 254:
+            raise ValueError(f"present must have shape ({B}, {P}) with P <= 254")
+        flat, flat_colors, K, R, t, size = _checked(
+            vertices.reshape(B * P, N, 3), colors.reshape(B * P, N, 3), np.repeat(K, P, 0),
+            np.repeat(R, P, 0), np.repeat(t, P, 0), np.repeat(size, P, 0), self.num_vertices,
+        )  # fmt: skip
+        V = K.shape[1]
+        rng = np.random.default_rng(rng)
+        if lighting is None:
+            lighting = [random_lighting(rng) for _ in range(B)]
+        normals = vertex_normals(flat, self._faces).reshape(B, P, N, 3)
+        images, ids = [], []
+        for b in range(B):
+            data = [
+                np.ascontiguousarray(
+                    np.concatenate([vertices[b, p], normals[b, p], colors[b, p]], axis=-1),
+                    dtype=np.float32,
+                ).tobytes()
+                for p in range(P)
+            ]  # (N, 9) per body
+            self._set_lighting(lighting[b])
+            for v in range(V):
+                i = b * P  # the cameras of scene b (repeated per body above)
+                self._begin_view(K[i, v], R[i, v], t[i, v], size[i, v], backgrounds, rng)
+                for p in np.flatnonzero(present[b]):
+                    self._vbo.write(data[p])
+                    self._prog["body_alpha"].value = (p + 1) / 255.0
+                    self._vao.render(self._mgl.TRIANGLES)
+                rgba = self._read_view(size[i, v])
+                images.append(rgba[..., :3].copy())
+                ids.append(rgba[..., 3].astype(np.int16) - 1)
+        self._prog["body_alpha"].value = 1.0
+        return images, ids
 
     def _set_lighting(self, light: Lighting) -> None:
         dirs = np.asarray(light.directions, float)
