@@ -147,6 +147,29 @@ def exact_2d(d: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     }
 
 
+def detector_summary(d: dict[str, np.ndarray]) -> str:
+    """The 2D's error against the projected joints: one line."""
+    from rmpl.skeleton import COCO17
+
+    ok = d["scores"] > 0
+    uv = d["projected"].astype(float)
+    height = np.ptp(uv[..., 1], axis=-1)  # (S, T, V) the person's projected height, px
+    err = np.linalg.norm(d["keypoints"] - uv, axis=-1)
+    rel = err / height[..., None]
+    flip = np.asarray(COCO17.flip_permutation())
+    other = np.linalg.norm(d["keypoints"] - uv[..., flip, :], axis=-1) < err
+    far = ok & (rel > 0.1)
+    swapped = (far & other & (np.arange(17) != flip)).sum() / max(far.sum(), 1)
+    seen = ok.any(-1)
+    return (
+        f"2D: {(~seen).mean() * 100:.1f}% of the images without a detection (median person "
+        f"height {np.median(height[~seen]):.0f} px there, {np.median(height[seen]):.0f} px "
+        f"where detected); detected joints {np.median(err[ok]):.1f} px median error, "
+        f"{far.sum() / ok.sum() * 100:.1f}% off by more than 10% of the person's height, "
+        f"{swapped * 100:.0f}% of those nearer the other side's joint (left/right)"
+    )
+
+
 def view_subsets(total: int, count: int, sample: int | None, rng) -> list[tuple[int, ...]]:
     """Every ``count``-view subset of ``total`` views, or ``sample`` of them drawn once."""
     subsets = list(itertools.combinations(range(total), count))
@@ -270,7 +293,8 @@ def main() -> None:
     fps = d["fps"]
     print(f"{a.root}: {len(fps)} sequences x {d['joints3d'].shape[1]} frames x {total} views, "
           f"{fps.min():.1f}-{fps.max():.1f} frames/s (median {np.median(fps):.1f}); "
-          f"subjects {sorted(set(d['subject'].tolist()))}; KP* MPJPE in mm\n")  # fmt: skip
+          f"subjects {sorted(set(d['subject'].tolist()))}; KP* MPJPE in mm")  # fmt: skip
+    print(detector_summary(d) + "\n")
     out = []
     for count in [int(x) for x in a.views.split(",")]:
         if not 2 <= count <= total:
