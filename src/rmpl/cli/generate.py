@@ -5,6 +5,8 @@ Examples:
   rmpl generate configs/mhp.toml --out /data/mhp --ray auto      (shards as Ray tasks)
   rmpl generate configs/mhp_seq.toml --out /data/mhp_seq --set poses="PATH/TO/cmu_mocap"
                                           (sequences: one body, motion and rig per sequence)
+  rmpl generate configs/mhp.toml --out /data/scenes --set 'people=[2, 4]' \
+      --set 'detector="blazepose-multi-static"'  (multi-person scenes, mutual occlusion)
   rmpl generate --stats /data/mhp [--noise-out noise.toml]       (detector error report)
 
 Re-running the same command resumes: finished shards are skipped.
