@@ -71,8 +71,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", default="rmpl", choices=["rmpl", "triangulate", "robust"])
     parser.add_argument(
         "--model",
-        default="default",
-        help=MODEL_HELP,
+        default=None,
+        help=MODEL_HELP + ". Default: temporal with two or more cameras and a known frame "
+        "rate, else default (per frame)",
     )
     parser.add_argument(
         "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"
@@ -126,6 +127,33 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run)
 
 
+def default_model(num_cameras: int, fps: float | None, method: str) -> str:
+    """``rmpl run``'s model when ``--model`` is not given: the temporal model (whole tracks,
+    chosen by the rule in docs/results.md) with two or more cameras and a known frame rate;
+    otherwise the per-frame model ``default``, saying why."""
+    if method != "rmpl" or num_cameras < 2:
+        return "default"  # one camera: the floor-based single-view path uses it
+    if fps is None:
+        log.warning(
+            "no frame rate known (give --fps): lifting each frame with the per-frame model "
+            "instead of whole tracks with the temporal model"
+        )
+        return "default"
+    return "temporal"
+
+
+def _warn_unused_filter(args: argparse.Namespace) -> None:
+    """--filter / --cutoff set away from their defaults do nothing with the temporal model."""
+    from rmpl.inference_temporal import is_temporal_checkpoint
+
+    changed = args.filter != "butterworth" or args.cutoff != 6.0
+    if changed and args.method == "rmpl" and is_temporal_checkpoint(args.model):
+        log.warning(
+            "--filter / --cutoff do not apply to the temporal model (it filters with rmpl "
+            "run's defaults); give --model default to filter per-frame answers your way"
+        )
+
+
 def _formats(text: str) -> list[str]:
     items = [f.strip().lower().lstrip(".") for f in text.split(",") if f.strip()]
     bad = [f for f in items if f not in FORMATS]
@@ -150,6 +178,9 @@ def run(args: argparse.Namespace) -> int:
     formats = _formats(args.formats)
     out = Path(args.out)
     up = axis_vector(args.up)
+    inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
+    check_cameras(inputs.rig, args.calib, args.method)
+    args.model = args.model or default_model(len(inputs.rig), inputs.fps, args.method)
     cfg = RunConfig(
         method=args.method,
         model=args.model,
@@ -159,8 +190,7 @@ def run(args: argparse.Namespace) -> int:
         min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
     )
-    inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
-    check_cameras(inputs.rig, args.calib, args.method)
+    _warn_unused_filter(args)
     single = one_camera(inputs.rig, args.method, args.model)
     if single:  # depth from the floor, body size and time (it says so in the log)
         poses = run_one_camera(inputs, cfg, args.floor, temporal=True)
@@ -200,4 +230,3 @@ def run(args: argparse.Namespace) -> int:
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
     )
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)
-    return 0

@@ -1,0 +1,41 @@
+"""rmpl run's model when --model is not given: the temporal model with two or more cameras
+and a frame rate, else the per-frame model, said in the log."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from rmpl.cli import main
+from rmpl.cli.run import default_model
+from rmpl.io.poses import load_poses
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "src/rmpl/examples/walk"
+
+
+def test_default_model_rule(caplog):
+    assert default_model(4, 30.0, "rmpl") == "temporal"
+    assert default_model(1, 30.0, "rmpl") == "default"  # one camera: the floor path
+    assert default_model(4, 30.0, "triangulate") == "default"
+    with caplog.at_level(logging.WARNING):
+        assert default_model(4, None, "rmpl") == "default"
+    assert any("no frame rate" in r.getMessage() for r in caplog.records)
+
+
+def test_rmpl_run_lifts_whole_tracks_by_default_and_per_frame_on_request(tmp_path):
+    """The embedded walk (4 cameras, a frame rate): the default run carries the temporal
+    model's error radii; --model default does not, and its answers differ."""
+    base = ["run", "--calib", str(EXAMPLE / "calibration.toml"), "--keypoints",
+            str(EXAMPLE / "keypoints.json"), "--no-pictures", "--pose2sim", "off"]  # fmt: skip
+    assert main([*base, "--out", str(tmp_path / "t")]) in (0, 3)
+    assert main([*base, "--model", "default", "--out", str(tmp_path / "f")]) in (0, 3)
+    temporal, frame = (load_poses(tmp_path / x / "poses.npz") for x in ("t", "f"))
+    assert temporal.uncertainty is not None and np.isfinite(temporal.uncertainty).any()
+    assert frame.uncertainty is None
+    truth = np.load(EXAMPLE / "ground_truth.npz")["points"][:, 0]
+    for poses in (temporal, frame):
+        err = np.linalg.norm(poses.points[:, 0] - truth, axis=-1)
+        assert np.nanmean(err) < 0.06  # both lift the walk (about 3-4 cm)
+    assert not np.allclose(temporal.points, frame.points, equal_nan=True)
