@@ -29,8 +29,8 @@ def test_rmpl_run_lifts_whole_tracks_by_default_and_per_frame_on_request(tmp_pat
     model's error radii; --model default does not, and its answers differ."""
     base = ["run", "--calib", str(EXAMPLE / "calibration.toml"), "--keypoints",
             str(EXAMPLE / "keypoints.json"), "--no-pictures", "--pose2sim", "off"]  # fmt: skip
-    assert main([*base, "--out", str(tmp_path / "t")]) in (0, 3)
-    assert main([*base, "--model", "default", "--out", str(tmp_path / "f")]) in (0, 3)
+    assert main([*base, "--out", str(tmp_path / "t")]) == 0
+    assert main([*base, "--model", "default", "--out", str(tmp_path / "f")]) == 0
     temporal, frame = (load_poses(tmp_path / x / "poses.npz") for x in ("t", "f"))
     assert temporal.uncertainty is not None and np.isfinite(temporal.uncertainty).any()
     assert frame.uncertainty is None

@@ -228,5 +228,6 @@ def run(args: argparse.Namespace) -> int:
         pictures=not args.no_pictures,
         overlays=overlays,
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
+        up=None if up is None else np.asarray(up, float),
     )
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)

@@ -33,7 +33,9 @@ TRC layout
 Orientation
     ``"pose2sim-y-up"`` (default): Pose2Sim's own Z-up -> Y-up mapping, file (X, Y, Z) =
     world (y, z, x), so that the files overlay Pose2Sim's of the same trial; OpenSim's
-    models are Y-up. It assumes a Z-up world (Qualisys and Shelf calibrations are).
+    models are Y-up. It assumes a Z-up world (Qualisys and Shelf calibrations are); ``rmpl
+    run`` turns any other world so that its up axis is +z first
+    (:func:`rmpl.pipeline.outputs.z_up_world`).
     ``"z-up"``: world axes as they are.
 Units
     ``"m"`` (default) or ``"mm"``. Pose2Sim's scaling reads TRC numbers as metres (it
@@ -282,7 +284,7 @@ def write_pose2sim(
                 with warnings.catch_warnings(), open(tmp, "wb") as f:
                     warnings.filterwarnings("ignore", "No analog data", UserWarning)
                     content.write(f)
-    log.info("wrote %d Pose2Sim files into %s", len(files), folder)
+    log.debug("wrote %d Pose2Sim files into %s", len(files), folder)
     return [path for path, _, _ in files]
 
 

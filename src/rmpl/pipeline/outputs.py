@@ -90,6 +90,7 @@ def write_all(
     pictures: bool = True,
     overlays=None,
     pose2sim: str | None = "pose2sim-y-up",
+    up=None,
 ):
     """The run report, every requested export plus the viewer page, the pictures and
     ``overlays(folder)``, committed into ``out`` as one set
@@ -99,7 +100,8 @@ def write_all(
     The exports carry each person's height and the view check's per-view status
     (:func:`rmpl.pipeline.report.build_report`). With ``pose2sim`` (an orientation of
     :func:`rmpl.io.pose2sim.write_pose2sim`; None: off) and a frame rate, ``out/pose-3d/``
-    gets one TRC and one C3D per person for Pose2Sim's kinematics (OpenSim scaling + IK).
+    gets one TRC and one C3D per person for Pose2Sim's kinematics (OpenSim scaling + IK), in
+    a world turned so that its up axis (``up``, (3,), else estimated from the cameras) is +z.
     A summary is logged after the commit; a person whose views disagree in most frames gets
     a WARNING banner.
 
@@ -115,7 +117,7 @@ def write_all(
     with staged_folder(out) as stage:
         _export(poses, stage, formats)
         if pose2sim is not None:
-            _export_pose2sim(poses, stage, pose2sim)
+            _export_pose2sim(poses, stage, pose2sim, inputs.rig, up)
         write_report(report, stage)
         ok = np.isfinite(poses.points).all(-1)
         if pictures:
@@ -129,6 +131,8 @@ def write_all(
         100 * ok.mean(),
         out,
     )
+    if pose2sim is not None and (out / "pose-3d").is_dir():
+        log.info("Pose2Sim trial files (one TRC + C3D per person): %s", out / "pose-3d")
     log_summary(report, out)
     if pictures:
         log.info("open %s in a browser to see the result", out / "viewer.html")
@@ -148,15 +152,49 @@ def _export(poses, out: Path, formats: list[str]) -> None:
         save_poses(poses, out / f"poses.{fmt}")
 
 
-def _export_pose2sim(poses, out: Path, orientation: str) -> None:
-    """Per-person Pose2Sim files in ``out/pose-3d/``; a run they cannot describe (no frame
-    rate, nobody with every IK marker in some frame) is said, not fatal."""
+def z_up_world(points: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (..., 3) turned so that ``up`` is +z, and that rotation (None: none needed).
+
+    An ``up`` within 30 degrees of a world axis is taken as that axis exactly (calibrations
+    state their up along an axis; the estimate from the cameras is a little off).
+
+    >>> p, R = z_up_world(np.array([[0.0, -1.7, 0.2]]), np.array([0.05, -0.99, 0.0]))
+    >>> np.round(p, 6).tolist(), R is not None
+    ([[0.0, 0.2, 1.7]], True)
+    >>> z_up_world(np.zeros((1, 3)), np.array([0.0, 0.1, 1.0]))[1] is None
+    True
+    """
+    from rmpl.inference import rotation_to_z
+
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    k = int(np.argmax(np.abs(up)))
+    axis = np.zeros(3)
+    axis[k] = np.sign(up[k])
+    if axis @ up > np.cos(np.radians(30)):
+        up = axis
+    if np.allclose(up, [0.0, 0.0, 1.0]):
+        return points, None
+    R = rotation_to_z(up)
+    return points @ R.T, R
+
+
+def _export_pose2sim(poses, out: Path, orientation: str, rig, up) -> None:
+    """Per-person Pose2Sim files in ``out/pose-3d/``, in a Z-up world (Pose2Sim's axes assume
+    one); a run they cannot describe (no frame rate, nobody with every IK marker in some
+    frame) is said, not fatal."""
+    import dataclasses
+
     from rmpl.errors import InputError
+    from rmpl.inference import estimate_up
     from rmpl.io.pose2sim import write_pose2sim
 
     if not poses.fps:
         log.warning("skipping the Pose2Sim files (pose-3d/): no frame rate (give --fps)")
         return
+    points, R = z_up_world(poses.points, estimate_up(rig) if up is None else up)
+    if R is not None:
+        log.info("the world's up is not +z: the Pose2Sim files are turned to put it along +z")
+        poses = dataclasses.replace(poses, points=points)
     try:
         write_pose2sim(poses, out / "pose-3d", stem="poses", orientation=orientation)
     except InputError as e:
