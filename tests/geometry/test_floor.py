@@ -116,3 +116,14 @@ def test_fit_floor_finds_a_tilted_floor_and_keeps_up_without_spread():
 def test_fit_floor_needs_points():
     with pytest.raises(InputError, match="at least 10"):
         fit_floor(np.full((30, 3), np.nan), np.array([0, 0, 1.0]))
+
+
+def test_an_overhead_camera_gives_no_convention_floor():
+    """Looking straight down, any world axis is 'upright' by roll: no floor is assumed."""
+    from rmpl.geometry.camera import look_at
+
+    for target in ([0.0, 0.01, 0.0], [0.01, 0.0, 0.0]):  # straight down, two headings
+        R, _ = look_at(np.array([0.0, 0.0, 3.0]), np.array(target))
+        assert convention_floor(R[None], np.array([[0.0, 0.0, 3.0]])) is None
+    R, _ = look_at(np.array([5.0, 0.0, 2.5]), np.array([0.0, 0.0, 1.0]))  # 17 degrees down
+    assert convention_floor(R[None], np.array([[5.0, 0.0, 2.5]])) is not None

@@ -169,3 +169,20 @@ def test_the_embedded_example_flags_exactly_the_grossly_wrong_detections():
     )
     assert gross[compared].sum() < 0.1 * compared.sum() and report.exit_code == 0
     assert report.people[0]["height_m"] == pytest.approx(estimate_height(truth), rel=0.03)
+
+
+def test_one_camera_is_not_reported_as_agreeing():
+    """Nothing to compare (one camera): the report says the check did not run, not that every
+    view agrees."""
+    from rmpl.geometry.camera import Rig
+    from rmpl.pipeline.report import verdict_lines
+
+    rig = make_rig()
+    one = Rig((rig[0],))
+    X = two_people()[:, :1]  # (T, 1, 17, 3)
+    kp = one.project(X.reshape(len(X), -1, 3)).reshape(len(X), 1, 1, 17, 2)
+    poses = Poses3D(X, frames=FRAMES, fps=25.0, membership=np.zeros((len(X), 1, 1), int))
+    report = build_report(poses, _inputs(one, kp, np.ones(kp.shape[:-1])))
+    text = " ".join(verdict_lines(report))
+    assert "every view agrees" not in text and "not checked" in text
+    assert report.to_json()["check"]["done"] is False

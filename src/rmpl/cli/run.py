@@ -192,6 +192,12 @@ def run(args: argparse.Namespace) -> int:
     )
     _warn_unused_filter(args)
     single = one_camera(inputs.rig, args.method, args.model)
+    if len(inputs.rig) == 1 and args.method == "rmpl" and not single:
+        log.warning(
+            "ONE CAMERA with the temporal model: nothing fixes the depth along the rays "
+            "(expect errors of 0.3 m or more); --model default takes depth from the floor, "
+            "body size and time"
+        )
     if single:  # depth from the floor, body size and time (it says so in the log)
         poses = run_one_camera(inputs, cfg, args.floor, temporal=True)
     else:

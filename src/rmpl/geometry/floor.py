@@ -52,6 +52,9 @@ AXES = {
 #: or handheld camera may lean (the Pose2Sim demo's cam_04 is rolled 24 degrees); a camera
 #: looking straight down, or an unrelated world frame, is not taken for a floor.
 CONVENTION_MAX_ANGLE = 30.0
+#: A camera whose optical axis is within this many degrees of the up axis (straight down or
+#: up) tells nothing about which axis is up: the convention is not assumed.
+OVERHEAD_MIN_ANGLE = 15.0
 
 
 @dataclass(frozen=True)
@@ -186,8 +189,9 @@ def convention_floor(
     The axis is the one nearest ``up`` when given, else nearest the cameras' mean image-up
     direction. The convention applies when every camera is upright about it (its image x
     axis within :data:`CONVENTION_MAX_ANGLE` degrees of horizontal: a small roll, any
-    pitch, so one camera looking down is fine) and above the plane; otherwise None (no
-    floor is assumed).
+    pitch, so one camera looking down is fine), none looks within
+    :data:`OVERHEAD_MIN_ANGLE` degrees of straight along the axis (overhead: its roll says
+    nothing), and all are above the plane; otherwise None (no floor is assumed).
 
     Args:
         rotations: world-to-camera rotations (V, 3, 3).
@@ -206,6 +210,11 @@ def convention_floor(
     name, axis = max(AXES.items(), key=lambda kv: float(np.dot(kv[1], hint)))
     tilt = np.degrees(np.arcsin(np.clip(np.abs(R[:, 0, :] @ np.asarray(axis)), 0, 1)))
     if (tilt > CONVENTION_MAX_ANGLE).any():
+        return None
+    # A camera looking nearly along the axis (straight down or up) has a horizontal image x
+    # axis for any axis: its roll says nothing, and its image-up may lie on a wall.
+    along = np.degrees(np.arccos(np.clip(np.abs(R[:, 2, :] @ np.asarray(axis)), 0, 1)))
+    if (along < OVERHEAD_MIN_ANGLE).any():
         return None
     floor = Floor(axis, 0.0, f"calibration convention: {name} up, floor at {name.lstrip('-')} = 0")
     if not (signed_distance(np.asarray(centers, float).reshape(-1, 3), floor) > 0).all():

@@ -105,7 +105,7 @@ class RunReport:
                 "threshold": cfg.threshold,
                 "min_joints": cfg.min_joints,
                 "most_frames": cfg.most_frames,
-                "done": self.consistency is not None,
+                "done": self.consistency is not None and bool(self.consistency.compared.any()),
             },
             "exit_code": self.exit_code,
             "failed_people": self.failed,
@@ -420,6 +420,9 @@ def verdict_lines(report: RunReport) -> list[str]:
         n = int(c.compared.sum())
         lines.append(
             f"every view agrees with the others for every person ({n} person-frames compared)"
+            if n
+            else "not checked: no person was seen by enough views to compare them (one "
+            "camera, or nobody in two or more views)"
         )
     return lines
 
