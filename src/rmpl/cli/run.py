@@ -6,8 +6,9 @@ triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D, BVH) and pictu
 overlays overlay_<camera>.mp4 or overlay_<camera>/).
 
 From videos (--videos, one synchronised video per camera) or image folders (--images, one
-folder of frames per camera, image i of each folder = frame i): MediaPipe BlazePose
-(needs rmpl[detect]) finds one person per frame and view. The videos must have the same
+folder of frames per camera, image i of each folder = frame i): BlazePose's networks
+(needs rmpl[detect]) find up to 4 people per frame and view and follow them over frames
+(--detector mediapipe: one person, MediaPipe's legacy Pose). The videos must have the same
 number of frames and frame rate; the cameras of --calib are matched to the videos by name
 (file name without suffix = camera name) or else by order. The 2D detections are cached in
 OUT/keypoints2d.npz with a fingerprint of the inputs (names, sizes, modification times) in
@@ -122,7 +123,11 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="videos/images: skip drawing the result onto the input frames",
     )
     parser.add_argument(
-        "--detector", default="mediapipe", help="videos/images: 2D detector (mediapipe)"
+        "--detector",
+        default=None,
+        help="videos/images: 2D detector: blazepose-multi (default: up to 4 people per view, "
+        "followed over frames), blazepose-multi-static, mediapipe (one person, MediaPipe's "
+        "legacy Pose)",
     )
     parser.set_defaults(run=run)
 

@@ -1,9 +1,10 @@
 """The inputs of a run: a calibration and 2D keypoints from files or detected in videos.
 
 :func:`load_inputs` reads the calibration and the 2D (any keypoint format rmpl reads, a
-Shelf/4D-association folder, or MediaPipe on videos / image folders with a cache and a
-fingerprint of the inputs), and matches the 2D views to the cameras by name (by order, with a
-warning, only when no name matches; a partial match is refused).
+Shelf/4D-association folder, or a 2D detector (``detect2d.DETECTORS``) on videos / image
+folders with a cache and a fingerprint of the inputs), and matches the 2D views to the
+cameras by name (by order, with a warning, only when no name matches; a partial match is
+refused).
 """
 
 from __future__ import annotations
@@ -104,11 +105,11 @@ def _load_2d(spec: InputSpec, cache: Path | None):
         if shelf is not None:
             return _shelf4d_keypoints(shelf)
         return load_keypoints(spec.keypoints, skeleton=spec.skeleton)
-    from rmpl.pipeline.detect2d import detect_images, detect_videos
+    from rmpl.pipeline.detect2d import DEFAULT_DETECTOR, detect_images, detect_videos
 
     kind = "videos" if spec.videos else "images"
     sources = spec.videos if kind == "videos" else spec.images
-    detector = spec.detector or "mediapipe"
+    detector = spec.detector or DEFAULT_DETECTOR
     stamp = _check_detection_inputs(spec, kind, sources, detector)
     stamp_path = None if cache is None else cache.with_name(cache.stem + ".inputs.json")
     if cache is not None and cache.is_file():
