@@ -23,10 +23,11 @@ frames of one motion segment (its source frames every ``k``-th, ``k`` chosen so 
 rate falls near one drawn log-uniformly in ``sequence_fps``, the playback speed drawn in
 ``sequence_speed``), played by one body (one phenotype, outfit, lighting, mirroring and
 bone perturbation), moving through the room as the mocap root moved, and seen by one rig
-(each camera keeps its background). Every frame is rendered and detected, as
-``rmpl run --videos`` would: MediaPipe's legacy ``Pose`` (the default ``detector``) in
-static-image mode on every image afresh; a detector that follows people from frame to frame
-(``blazepose-multi``) on each view's frames in order, as one video.
+(each camera keeps its background). Every frame is rendered and detected as
+``rmpl run --videos`` detects a recording: a detector that follows people from frame to
+frame (``blazepose-multi``, ``rmpl run``'s default) gets each view's frames in order, as
+one video; one that does not (MediaPipe's legacy ``Pose``, this config's default
+``detector``, static-image mode) detects every image afresh.
 The motion is read into ``motion.npz`` (:class:`MotionBank`) instead of ``poses.npz``, the
 manifest's format is :data:`SEQUENCE_FORMAT` and the shards hold
 :data:`SEQUENCE_ARRAYS`; ``num_meshes`` and ``shard_size`` count sequences, and each
