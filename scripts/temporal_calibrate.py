@@ -1,6 +1,6 @@
 """Fit a temporal checkpoint's per-view-count error radii on held-out synthetic windows.
 
-Usage: python scripts/temporal_calibrate.py SEQBANK CHECKPOINT [--windows 64]
+Usage: python scripts/temporal_calibrate.py SEQBANK CHECKPOINT [--windows 64] [--mhp DIR ...]
 
 The same windows and rule as training's last validation (CMU subject 03 held out, the
 temporal detector model of the checkpoint's recipe, seed 12345, 2, 3 and 5 views), the
@@ -8,6 +8,11 @@ answer assembled as the checkpoint's lifter does (``"inference": {"assemble": ..
 :func:`rmpl.training.temporal.fit_radius_calibration`. Writes the ``"calibration"`` entry
 of ``CHECKPOINT/config.json`` (atomically); the weights are not touched. For checkpoints
 trained before the calibration existed; training writes it itself.
+
+With ``--mhp DIR ...`` the radii are fitted on MHP sequences instead (``rmpl generate`` with
+``sequence_frames``: renders seen by a real detector; configs/mhp_seq_calib.toml makes a set
+of training subjects): ``--windows`` windows of the model's length per view count (2, 3 and
+5 views drawn from each sequence's cameras, seed 12345, no augmentation).
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ def main() -> None:
     ap.add_argument("bank")
     ap.add_argument("checkpoint")
     ap.add_argument("--windows", type=int, default=64, help="windows per view count")
+    ap.add_argument("--mhp", nargs="+", help="MHP sequence folders to fit on instead")
     a = ap.parse_args()
     torch.set_num_threads(2)
     model, meta = load_temporal(a.checkpoint)
@@ -42,11 +48,21 @@ def main() -> None:
     cfg = TemporalTrainConfig(
         noise=train.get("noise", {}), model=train.get("model", {}), val_size=a.windows
     )
-    _, val = SequenceBank.load(a.bank).split(train.get("holdout", ["03"]))
-    sets = validation_sets(val, cfg, views=(2, 3, 5))
+    if a.mhp:
+        from rmpl.data.mhp import SequenceShardSource
+
+        src = SequenceShardSource(a.mhp, augment=False, seed=12345)
+        w = model.config.window
+        sets = {v: src.batch(a.windows, w, v, train=False) for v in (2, 3, 5)}
+    else:
+        _, val = SequenceBank.load(a.bank).split(train.get("holdout", ["03"]))
+        sets = validation_sets(val, cfg, views=(2, 3, 5))
     assemble = TemporalLifter(model, meta, onnx=False).assemble
     calibration = fit_radius_calibration(model, sets, assemble=assemble)
-    meta["calibration"] = calibration.to_meta()
+    meta["calibration"] = {
+        **calibration.to_meta(),
+        "fitted_on": "MHP sequences " + ", ".join(a.mhp) if a.mhp else "synthetic windows",
+    }
     path = Path(a.checkpoint) / "config.json"
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(meta, indent=2) + "\n")
