@@ -15,8 +15,9 @@ How the answer is assembled is the checkpoint's ``"inference": {"assemble": ...}
 (:data:`ASSEMBLE`): ``"network"`` returns the temporal network's output; ``"filtered"``
 (the shipped model's) takes the per-frame model's answer where at least two views see the
 joint and the network's elsewhere, then runs ``rmpl run``'s filters over the whole track
-(:func:`assemble_track`). The second was chosen on held-out synthetic windows
-(docs/results.md): the network adds most where fewer than two views see a joint.
+(:func:`assemble_track`). The second was chosen on synthetic validation windows of a
+held-out subject (docs/results.md): the network adds most where fewer than two views see a
+joint.
 """
 
 from __future__ import annotations
@@ -72,8 +73,9 @@ class RadiusCalibration:
     tenths) of the errors is ``r50[k] * sigma`` (``r90[k] * sigma``), with ``k`` the number of
     views seeing the joint in that frame, the last entry serving every larger ``k``. The
     factors are quantiles of error / sigma on held-out windows
-    (:func:`rmpl.training.temporal.fit_radius_calibration`), stored in the checkpoint's
-    ``config.json`` under ``"calibration"``.
+    (:func:`rmpl.training.temporal.fit_radius_calibration`; the shipped model's: MHP
+    sequences seen by the real detector, ``scripts/temporal_calibrate.py --mhp``), stored in
+    the checkpoint's ``config.json`` under ``"calibration"``.
     """
 
     r50: tuple[float, ...]
