@@ -225,3 +225,14 @@ def test_frame_ranges_and_settings():
     for bad in ({"threshold": 0}, {"min_joints": 0}, {"most_frames": 1.5}):
         with pytest.raises(ValueError):
             ConsistencyConfig(**bad)
+
+
+def test_a_view_with_too_few_joints_is_not_counted_as_disagreeing():
+    """Two cameras that disagree and a third with 3 joints: the third stays unchecked."""
+    rig = make_rig(views=3)
+    sees = np.array([[0, 1, 0]] * 40)
+    kp, sc = one_per_view(two_people(), rig, sees)
+    sc[:, 2, 0, 3:] = 0  # c2 sees 3 joints: too few to compare
+    kp[:, 2, 0, 3:] = np.nan
+    poses, c = check(rig, kp, sc)
+    assert (c.status[:, 0, 2] == U).all()

@@ -364,7 +364,10 @@ def check_views(
     checked = np.isfinite(error)
     status[checked & (error <= thr)] = ViewStatus.AGREES
     status[checked & (error > thr)] = ViewStatus.DISAGREES
-    status[has2d & ~found[..., None] & comparable[..., None]] = ViewStatus.DISAGREES
+    # no two views agree: every view that could be compared disagrees (a view with too few
+    # joints to compare stays unchecked)
+    enough = err.valid.sum(-1) >= cfg.min_joints  # (T, P, V)
+    status[has2d & enough & ~found[..., None] & comparable[..., None]] = ViewStatus.DISAGREES
     inside = _in_image(points, rig)
     status[~has2d & inside] = ViewStatus.MISSED
     status[~has2d & ~inside] = ViewStatus.OUT_OF_VIEW
