@@ -509,6 +509,7 @@ def test_sequences_with_a_detector_that_follows_people(tiny_seq_run, tmp_path):
         ({"people": [2]}, "people"),
         ({"people": [2, 3], "sequence_frames": 8, "poses": "m.npz"}, "sequence_frames"),
         ({"people": [2, 3], "occlusion_rate": 0.1}, "occlusion_rate"),
+        ({"people": [2, 8], "room": 0.3}, "room"),  # 8 bodies 0.6 m apart in 0.6 x 0.6 m
     ],
 )
 def test_bad_scene_config_names_the_field(tmp_path, override, field):

@@ -338,6 +338,9 @@ def _scene_checks(cfg: GenerateConfig) -> list[tuple[str, bool, str]]:
          "0 or 1 with people above 1 (multi-person sequences are not made yet)"),
         ("occlusion_rate", not (ok and cfg.scenes) or cfg.occlusion_rate == 0,
          "0 with people above 1 (the bodies occlude each other)"),
+        ("room", not (ok and cfg.scenes) or room_fits(p[1], cfg.room),
+         f"a floor half-width that fits the scene's bodies {SCENE_GAP} m apart "
+         f"(>= {SCENE_GAP * (np.ceil(np.sqrt(p[1] if ok else 1)) - 1):g} m)"),
     ]  # fmt: skip
 
 
@@ -1123,14 +1126,31 @@ def _sequence_shard(worker: Worker, index: int, first: int, n: int, out: str | P
 # ---------------------------------------------------------------------------- scenes
 
 
-def spread(n: int, room: float, rng: np.random.Generator, gap: float = 0.6) -> np.ndarray:
+#: Least distance between two bodies of a scene, metres.
+SCENE_GAP = 0.6
+
+
+def room_fits(n: int, room: float, gap: float = SCENE_GAP) -> bool:
+    """Whether +-``room`` metres leaves ``n`` random positions ``gap`` apart easily: a square
+    grid of them at twice the gap fits (random draws then succeed within a few tries).
+
+    >>> room_fits(4, 1.0), room_fits(8, 0.5)
+    (True, False)
+    """
+    side = int(np.ceil(np.sqrt(n)))
+    return 2 * room >= 2 * gap * (side - 1)
+
+
+def spread(n: int, room: float, rng: np.random.Generator, gap: float = SCENE_GAP) -> np.ndarray:
     """n floor positions uniform within +-``room`` metres, at least ``gap`` metres apart
-    (redrawn up to 100 times; then the last draw is kept). Returns (n, 2) metres."""
+    (redrawn up to 100 times; then the last draw is kept, with a warning). Returns (n, 2)
+    metres."""
     for _ in range(100):
         where = rng.uniform(-room, room, (n, 2))
         d = np.linalg.norm(where[:, None] - where[None], axis=-1) + np.eye(n) * 1e9
         if d.min() >= gap:
-            break
+            return where
+    log.warning("%d bodies %g m apart did not fit in +-%g m: two may overlap", n, gap, room)
     return where
 
 
