@@ -423,3 +423,50 @@ def test_a_checkpoint_naming_an_unknown_assembly_is_one_clear_error(setup, tmp_p
         TemporalLifter.from_pretrained(bad)
     with pytest.raises(ValueError, match="assemble"):
         TemporalLifter(tt.load_temporal(d / "full")[0], assemble="magic")
+
+
+def test_training_mixes_in_mhp_sequences_and_resumes_exactly(setup, tmp_path, monkeypatch):
+    """mhp_sequences: batches come from both sources (the held-out subject's sequences left
+    out), and a killed run resumed equals an uninterrupted one."""
+    from tests.data.test_mhp_sequences import _fake_sequences
+
+    d, cfg = setup
+    _fake_sequences(tmp_path / "mhp")  # subjects 01 and 03, 10 frames, 4 views
+    mix = tt.TemporalTrainConfig(**{**vars(cfg), "mhp_sequences": (str(tmp_path / "mhp"),),
+                                    "mhp_weight": 0.5, "holdout": ("03",)})  # fmt: skip
+    drawn = []
+    real_batch = tt.SequenceSource.batch
+
+    def spy(self, *a, **k):
+        drawn.append("synthetic")
+        return real_batch(self, *a, **k)
+
+    monkeypatch.setattr(tt.SequenceSource, "batch", spy)
+    from rmpl.data.mhp import SequenceShardSource
+
+    real_mhp = SequenceShardSource.batch
+
+    def spy_mhp(self, *a, **k):
+        drawn.append("mhp")
+        assert len(self.data["joints3d"]) == 3  # subject 03's 3 sequences held out
+        return real_mhp(self, *a, **k)
+
+    monkeypatch.setattr(SequenceShardSource, "batch", spy_mhp)
+    tt.train_temporal(mix, tmp_path / "full")
+    assert drawn.count("mhp") >= 1 and drawn.count("synthetic") >= 2  # 4 steps + validation
+    real = tt._checkpoint
+
+    def killed_after_first(run, *a):
+        real(run, *a)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(tt, "_checkpoint", killed_after_first)
+    with pytest.raises(KeyboardInterrupt):
+        tt.train_temporal(mix, tmp_path / "resumed")
+    monkeypatch.setattr(tt, "_checkpoint", real)
+    tt.train_temporal(mix, tmp_path / "resumed")
+    a, b = _weights(tmp_path / "full"), _weights(tmp_path / "resumed")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    short = tt.TemporalTrainConfig(**{**vars(mix), "model": {**cfg.model, "window": 12}})
+    with pytest.raises(InputError, match="mhp_sequences"):
+        tt.train_temporal(short, tmp_path / "short")

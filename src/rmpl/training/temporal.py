@@ -56,6 +56,9 @@ class TemporalTrainConfig:
         val_every, val_size: validation cadence and windows per view count.
         seed, threads, time_limit (seconds, 0 = none; run again to resume).
         model: :class:`TemporalConfig` overrides. noise: :class:`TemporalNoise` overrides.
+        mhp_sequences: MHP sequence folders (``rmpl generate`` with ``sequence_frames``):
+            renders seen by a real detector over time, mixed into training (their
+            ``holdout`` subjects left out). mhp_weight: the share of batches drawn from them.
     """
 
     sequences: str = ""
@@ -77,6 +80,8 @@ class TemporalTrainConfig:
     time_limit: float = 0.0
     model: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
+    mhp_sequences: tuple[str, ...] = ()
+    mhp_weight: float = 0.5
 
     def __post_init__(self) -> None:
         checks = [
@@ -89,6 +94,7 @@ class TemporalTrainConfig:
             ("lr", self.lr > 0, "> 0"),
             ("single_view_rate", 0 <= self.single_view_rate <= 1, "in [0, 1]"),
             ("threads", self.threads >= 1, ">= 1"),
+            ("mhp_weight", 0 <= self.mhp_weight <= 1, "in [0, 1]"),
         ]
         for name, ok, expected in checks:
             if not ok:
@@ -111,8 +117,9 @@ class TemporalTrainConfig:
         unknown = set(d) - known
         if unknown:
             raise InputError(path, ", ".join(sorted(unknown)), f"one of {sorted(known)}")
-        if "holdout" in d:
-            d["holdout"] = tuple(d["holdout"])
+        for key in ("holdout", "mhp_sequences"):
+            if key in d:
+                d[key] = (d[key],) if isinstance(d[key], str) else tuple(d[key])
         return cls(**d)
 
     def model_config(self) -> TemporalConfig:
@@ -345,6 +352,22 @@ class _Run:
         self.opt = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
         self.src = SequenceSource(train_bank, temporal=cfg.noise_config(), seed=cfg.seed)
         self.rng_views = np.random.default_rng(cfg.seed + 1)
+        # MHP sequences have their own generators, drawn from only when they are used, so
+        # runs without them stay bit-identical to those made before they existed.
+        self.mhp = self.rng_mix = None
+        if cfg.mhp_sequences:
+            from rmpl.data.mhp import SequenceShardSource
+
+            self.mhp = SequenceShardSource(
+                list(cfg.mhp_sequences), exclude_subjects=cfg.holdout, seed=cfg.seed + 2
+            )
+            if self.mhp.num_frames < self.model.config.window:
+                raise InputError(
+                    cfg.mhp_sequences[0], "mhp_sequences",
+                    f"sequences of at least the model's window, {self.model.config.window} "
+                    "frames", f"{self.mhp.num_frames} frames",
+                )  # fmt: skip
+            self.rng_mix = np.random.default_rng(cfg.seed + 3)
         self.step, self.elapsed, self.running = 0, 0.0, None
 
     @property
@@ -360,6 +383,9 @@ class _Run:
         self.step, self.elapsed, self.running = s["step"], s["elapsed"], s["running"]
         self.src.rng.bit_generator.state = s["rng_source"]
         self.rng_views.bit_generator.state = s["rng_views"]
+        if self.mhp is not None:
+            self.mhp.rng.bit_generator.state = s["rng_mhp"]
+            self.rng_mix.bit_generator.state = s["rng_mix"]
         torch.set_rng_state(s["rng_torch"])
         return True
 
@@ -374,13 +400,20 @@ class _Run:
             "rng_views": self.rng_views.bit_generator.state,
             "rng_torch": torch.get_rng_state(),
         }
+        if self.mhp is not None:
+            state["rng_mhp"] = self.mhp.rng.bit_generator.state
+            state["rng_mix"] = self.rng_mix.bit_generator.state
         with atomic_path(self.state_file) as tmp:
             torch.save(state, tmp)
 
     def train_step(self) -> float:
         cfg = self.cfg
         V = _views(self.rng_views, cfg)
-        b = self.src.batch(cfg.batch_size, self.model.config.window, V)
+        W = self.model.config.window
+        if self.mhp is not None and self.rng_mix.random() < cfg.mhp_weight:
+            b = self.mhp.batch(cfg.batch_size, W, min(V, self.mhp.num_views))
+        else:
+            b = self.src.batch(cfg.batch_size, W, V)
         for g in self.opt.param_groups:
             g["lr"] = _lr_at(self.step, cfg)
         loss, nll, _ = loss_terms(self.model, b)
