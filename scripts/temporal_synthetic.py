@@ -108,5 +108,6 @@ def main() -> None:
                   f"hard {ef[hard].mean() * 1000:7.1f}"
                   f" | inside 50% {c50 * 100:4.1f}%  90% {c90 * 100:4.1f}%")  # fmt: skip
 
+
 if __name__ == "__main__":
     main()
