@@ -173,6 +173,28 @@ def _pad_views(part: dict[str, np.ndarray], key: str, width: int) -> np.ndarray:
     return np.concatenate([a, pad], axis=1)
 
 
+def turn_and_shift(target, R, t, shift: float, rng: np.random.Generator):
+    """Turn each sample's scene about the vertical by a random angle and move it up to
+    ``shift`` metres on the floor, joints and cameras together (the 2D stays exact).
+
+    Args:
+        target: (B, ..., 3) world metres. R: (B, V, 3, 3), t: (B, V, 3) world-to-camera.
+
+    Returns:
+        target, R, t of the moved scenes.
+    """
+    B = len(target)
+    yaw = rng.uniform(-np.pi, np.pi, B)
+    Rz = rodrigues(np.stack([np.zeros(B), np.zeros(B), yaw], -1))  # (B, 3, 3)
+    c = np.concatenate([rng.uniform(-shift, shift, (B, 2)), np.zeros((B, 1))], -1)
+    extra = (1,) * (target.ndim - 2)
+    target = np.einsum("bij,b...j->b...i", Rz, target) + c.reshape(B, *extra, 3)
+    # x_cam = R X + t = R Rz^T (X' - c) + t
+    R = R @ np.swapaxes(Rz, -1, -2)[:, None]
+    t = t - np.einsum("bvij,bj->bvi", R, c)
+    return target, R, t
+
+
 class ShardSource:
     """Training batches from MHP shards: each sample is one mesh seen by ``V`` of its views.
 
@@ -243,15 +265,7 @@ class ShardSource:
         K, R, t = d["K"][take], d["R"][take].copy(), d["t"][take].copy()
         target = d["joints3d"][idx].astype(np.float64)
         if train and self.augment:
-            yaw = rng.uniform(-np.pi, np.pi, size)
-            Rz = rodrigues(np.stack([np.zeros(size), np.zeros(size), yaw], -1))  # (B, 3, 3)
-            c = np.concatenate(
-                [rng.uniform(-self.shift, self.shift, (size, 2)), np.zeros((size, 1))], -1
-            )
-            target = np.einsum("bij,bnj->bni", Rz, target) + c[:, None]
-            # x_cam = R X + t = R Rz^T (X' - c) + t
-            R = R @ np.swapaxes(Rz, -1, -2)[:, None]
-            t = t - np.einsum("bvij,bj->bvi", R, c)
+            target, R, t = turn_and_shift(target, R, t, self.shift, rng)
         if train and self.drop_rate > 0:
             drop = rng.random(scores.shape) < self.drop_rate
             scores = np.where(drop, 0.0, scores)
@@ -381,13 +395,7 @@ class SequenceShardSource:
         times = d["times"][seq[:, None], rows]
         times = times - times[:, :1]
         if train and self.augment:
-            yaw = rng.uniform(-np.pi, np.pi, B)
-            Rz = rodrigues(np.stack([np.zeros(B), np.zeros(B), yaw], -1))  # (B, 3, 3)
-            c = np.concatenate([rng.uniform(-self.shift, self.shift, (B, 2)), np.zeros((B, 1))], -1)
-            target = np.einsum("bij,btnj->btni", Rz, target) + c[:, None, None]
-            # x_cam = R X + t = R Rz^T (X' - c) + t
-            R = R @ np.swapaxes(Rz, -1, -2)[:, None]
-            t = t - np.einsum("bvij,bj->bvi", R, c)
+            target, R, t = turn_and_shift(target, R, t, self.shift, rng)
             times = times + rng.uniform(0, 100, (B, 1))
         if train and self.drop_rate > 0:
             scores = np.where(rng.random(scores.shape) < self.drop_rate, 0.0, scores)
