@@ -241,6 +241,20 @@ class Poses3D:
                 )
             self.view_status = s.astype(np.uint8)
 
+    def person(self, p: int) -> Poses3D:
+        """Person ``p`` (an index, not an id) alone: every per-person field sliced."""
+
+        def one(x):
+            return None if x is None else x[:, p : p + 1]
+
+        return dataclasses.replace(
+            self,
+            points=self.points[:, p : p + 1],
+            person_ids=self.person_ids[p : p + 1],
+            heights=None if self.heights is None else self.heights[p : p + 1],
+            **{k: one(getattr(self, k)) for k in _OPTIONAL if k != "heights"},
+        )
+
     @property
     def num_frames(self) -> int:
         return self.points.shape[0]

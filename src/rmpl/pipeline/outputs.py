@@ -24,16 +24,6 @@ __all__ = ["FORMATS", "write_all", "write_input_overlays"]
 log = logging.getLogger(__name__)
 
 FORMATS = ("npz", "json", "trc", "c3d", "bvh")
-# The (T, P, ...) fields of Poses3D, sliced per person.
-_PER_PERSON = (
-    "scores",
-    "flags",
-    "num_views",
-    "uncertainty",
-    "membership",
-    "views_excluded",
-    "view_status",
-)
 
 
 def write_input_overlays(sources: list[str], kind: str, poses, inputs, out: Path) -> list[Path]:
@@ -59,22 +49,11 @@ def write_input_overlays(sources: list[str], kind: str, poses, inputs, out: Path
 
 def _write_bvh(poses, out: Path) -> None:
     """BVH holds one skeleton: poses.bvh for one person, else poses_p<id>.bvh each."""
-    import dataclasses
-
     from rmpl.errors import InputError
     from rmpl.io.poses import save_poses
 
     for p, pid in enumerate(poses.person_ids.tolist()):
-        one = dataclasses.replace(
-            poses,
-            points=poses.points[:, p : p + 1],
-            person_ids=poses.person_ids[p : p + 1],
-            **{
-                k: None if getattr(poses, k) is None else getattr(poses, k)[:, p : p + 1]
-                for k in _PER_PERSON
-            },
-            heights=None if poses.heights is None else poses.heights[p : p + 1],
-        )
+        one = poses.person(p)
         name = "poses.bvh" if poses.num_people == 1 else f"poses_p{pid}.bvh"
         try:
             save_poses(one, out / name)
