@@ -298,9 +298,10 @@ def assembled_windows(model: TemporalRMPL, b, assemble: str = "network"):
     from rmpl.inference_temporal import assemble_track
 
     rays, scores, times, _ = _tensors(b)
-    points, sigma = (x.numpy() for x in model(rays, scores, times))
+    encoded = model.encode_frames(rays, scores)  # what model(...) does, kept for the frame answer
+    points, sigma = (x.numpy() for x in model.forward_encoded(*encoded, times))
     if assemble == "filtered":
-        frame = model.encode_frames(rays, scores)[0].numpy()
+        frame = encoded[0].numpy()
         views = (b.scores > 0).sum(2)
         points = np.stack([assemble_track(points[i], frame[i], views[i], b.times[i])
                            for i in range(len(points))])  # fmt: skip
