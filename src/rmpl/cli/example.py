@@ -1,7 +1,7 @@
 """Run the whole job on the embedded example: a 4-camera walk, lifted, smoothed, exported.
 
-Writes poses.{npz,json,trc,c3d}, viewer.html (open it in a browser), skeleton.png and
-reprojection.png into --out, and prints the error of RMPL and of robust triangulation
+Writes poses.{npz,json,trc,c3d,bvh}, report.md/report.json, pose-3d/ (the Pose2Sim files),
+viewer.html (open it in a browser), skeleton.png and reprojection.png into --out, and prints the error of RMPL and of robust triangulation
 against the example's ground truth. The example was made by rmpl itself
 (scripts/make_example.py): a held-out motion-capture walk retargeted onto an anny body,
 rendered from 4 synthetic cameras, with MediaPipe BlazePose's 2D detections of the renders.
@@ -78,5 +78,8 @@ def run(args: argparse.Namespace) -> int:
             f"   KP* {1000 * mpjpe(p, gt, KP_STAR):5.1f} mm"
             f"   ({cov:.0f}% of joints estimated)"
         )
-    print(f"wrote {out}: poses.{{npz,json,trc,c3d}}, viewer.html, skeleton.png, reprojection.png")
+    print(
+        f"wrote {out}: poses.{{npz,json,trc,c3d,bvh}}, report.md, report.json, pose-3d/, "
+        "viewer.html, skeleton.png, reprojection.png"
+    )
     return 0
