@@ -25,6 +25,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.model.lifter import RMPL
+from rmpl.skeleton import Skeleton, skeleton_for, to_model_joints
 
 __all__ = ["Lifter", "LiftResult", "estimate_up", "rotation_to_z", "PRETRAINED"]
 
@@ -93,6 +94,22 @@ def rotation_to_z(up: np.ndarray) -> np.ndarray:
     return rodrigues(axis / s * np.arctan2(s, c))
 
 
+def model_inputs(keypoints, scores, skeleton: Skeleton, joints: str | None):
+    """A user's keypoints and scores in a model's joint set (:func:`to_model_joints`); a
+    joint count that fits no joint set is one :class:`InputError`."""
+    from rmpl.io.keypoints import _floats
+
+    kp, sc = _floats(keypoints, "keypoints"), _floats(scores, "scores")
+    if kp.ndim < 2 or kp.shape[-1] != 2 or sc.shape != kp.shape[:-1]:
+        return kp, sc  # the shape checks that follow name the problem
+    try:
+        return to_model_joints(kp, sc, skeleton, joints)
+    except ValueError as e:
+        raise InputError(
+            None, "keypoints", f"joints of {skeleton.name} or COCO-17", str(e)
+        ) from None
+
+
 class Lifter:
     """A trained RMPL model ready for inference.
 
@@ -152,6 +169,11 @@ class Lifter:
     def num_joints(self) -> int:
         return self.model.config.num_joints
 
+    @property
+    def skeleton(self) -> Skeleton:
+        """The joint set the model outputs (COCO-17, or HALPE-26 whose first 17 are COCO-17)."""
+        return skeleton_for(self.model.config.skeleton)
+
     @torch.no_grad()
     def lift(
         self,
@@ -161,6 +183,7 @@ class Lifter:
         up: np.ndarray | None = None,
         batch_size: int = 128,
         progress: bool = False,
+        joints: str | None = None,
     ) -> LiftResult:
         """Lift 2D keypoints from calibrated views to 3D.
 
@@ -174,18 +197,23 @@ class Lifter:
             batch_size: frames per forward pass (128 keeps a 10,000-frame, 4-view lift
                 under 1 GB of memory at no cost in speed on 2 cores).
             progress: show a progress bar.
+            joints: the keypoints' joint set (a name in :data:`rmpl.skeleton.SKELETONS`);
+                None: the model's own (:attr:`skeleton`) when J matches, else COCO-17.
+                Joints the input lacks are missing; the model still estimates them.
 
         Keypoints more than one image size outside their image (cameras with a known
         size; :data:`rmpl.io.keypoints.FAR_MARGIN`) are treated as missing, with a warning.
 
         Returns:
-            :class:`LiftResult` with points (*, J, 3) in world metres.
+            :class:`LiftResult` with points (*, J, 3) in world metres, J and its order those
+            of :attr:`skeleton`; ``num_views`` counts the views of the model's joints.
 
         Raises:
             InputError: wrong types or shapes (a people axis is named as such), views not
                 matching the rig, a bad ``up`` or ``batch_size``, or no keypoint at all.
         """
-        kp, sc = self._checked(keypoints, scores, rig, up, batch_size)
+        kp, sc = model_inputs(keypoints, scores, self.skeleton, joints)
+        kp, sc = self._checked(kp, sc, rig, up, batch_size)
         ok = np.isfinite(kp).all(-1) & (sc > 0)
         if not ok.any():
             raise InputError(

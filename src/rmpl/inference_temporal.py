@@ -32,8 +32,9 @@ import torch
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.inference import PRETRAINED, estimate_up, rotation_to_z
+from rmpl.inference import PRETRAINED, estimate_up, model_inputs, rotation_to_z
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
+from rmpl.skeleton import Skeleton, skeleton_for
 
 __all__ = [
     "ASSEMBLE",
@@ -265,6 +266,11 @@ class TemporalLifter:
         return self.model.frame_model.config.num_joints
 
     @property
+    def skeleton(self) -> Skeleton:
+        """The joint set the model outputs (see :attr:`rmpl.Lifter.skeleton`)."""
+        return skeleton_for(self.model.frame_model.config.skeleton)
+
+    @property
     def window(self) -> int:
         return self.model.config.window
 
@@ -298,6 +304,7 @@ class TemporalLifter:
         times: np.ndarray | None = None,
         up: np.ndarray | None = None,
         batch_windows: int = 32,
+        joints: str | None = None,
     ) -> TrackResult:
         """Lift one person's track.
 
@@ -307,12 +314,13 @@ class TemporalLifter:
             rig: the V cameras. fps or times: the frame rate, or each frame's time (T,) s.
             up: world up direction (3,); estimated from the rig when None.
             batch_windows: windows per forward pass.
+            joints: the keypoints' joint set, as for :meth:`rmpl.Lifter.lift`.
 
         Returns:
             :class:`TrackResult`; frames before the first and after the last frame with a
             keypoint are NaN (the track has not started or has ended there).
         """
-        kp, sc = np.asarray(keypoints, float), np.asarray(scores, float)
+        kp, sc = model_inputs(keypoints, scores, self.skeleton, joints)
         rays, s, Rc = self._rays(kp, sc, rig, up)
         t = frame_times(len(kp), fps, times)
         t = t - t[0]  # in float64: a clock's origin (e.g. Unix time) would swamp float32

@@ -19,11 +19,17 @@ __all__ = [
     "BODY25",
     "BODY25B",
     "BLAZEPOSE33",
+    "HALPE26",
     "SKELETONS",
     "KP_STAR",
     "SHELF_LIMB_JOINTS",
     "convert",
     "conversion_matrix",
+    "embed",
+    "embed_scores",
+    "EMBED_ALIASES",
+    "skeleton_for",
+    "to_model_joints",
     "flip_left_right",
 ]
 
@@ -327,8 +333,45 @@ _BLAZE_NAMES = (
 )
 BLAZEPOSE33 = Skeleton("blazepose33", _BLAZE_NAMES, (), _pairs(_BLAZE_NAMES))
 
+# HALPE-26 (AlphaPose; the Pose2Sim default with RTMPose): COCO-17 in COCO's order, then
+# HALPE's Head (the top of the head), Neck and Hip (the pelvis, between the hips), then the
+# feet. rmpl's lifter outputs this set; its first 17 joints are COCO-17, so ``[..., :17, :]``
+# is the COCO-17 subset. Definitions on the body mesh: ``rmpl.synth.body``.
+_HALPE_NAMES = _COCO_NAMES + (
+    "head_top",
+    "neck",
+    "mid_hip",
+    "left_big_toe",
+    "right_big_toe",
+    "left_small_toe",
+    "right_small_toe",
+    "left_heel",
+    "right_heel",
+)
+HALPE26 = Skeleton(
+    "halpe26",
+    _HALPE_NAMES,
+    COCO17.bones
+    + _bones(
+        _HALPE_NAMES,
+        [
+            ("head_top", "neck"),
+            ("neck", "mid_hip"),
+            ("left_ankle", "left_heel"),
+            ("left_heel", "left_big_toe"),
+            ("left_big_toe", "left_small_toe"),
+            ("left_small_toe", "left_ankle"),
+            ("right_ankle", "right_heel"),
+            ("right_heel", "right_big_toe"),
+            ("right_big_toe", "right_small_toe"),
+            ("right_small_toe", "right_ankle"),
+        ],
+    ),
+    _pairs(_HALPE_NAMES),
+)
+
 SKELETONS: dict[str, Skeleton] = {
-    s.name: s for s in (COCO17, H36M17, SHELF14, BODY25, BODY25B, BLAZEPOSE33)
+    s.name: s for s in (COCO17, H36M17, SHELF14, BODY25, BODY25B, BLAZEPOSE33, HALPE26)
 }
 
 #: COCO-17 indices of the joints defined alike in COCO, Human3.6M and Shelf (thesis 6.2.1):
@@ -385,6 +428,18 @@ _CONVERSIONS: dict[tuple[str, str], np.ndarray] = {
                 "left_shoulder": -0.5,
                 "right_shoulder": -0.5,
             },
+        },
+    ),
+    # The lifter's own head top and neck (HALPE-26) give Shelf's directly.
+    ("halpe26", "shelf14"): _by_name(HALPE26, SHELF14, {}),
+    ("halpe26", "coco17"): _by_name(HALPE26, COCO17, {}),
+    ("halpe26", "h36m17"): _by_name(
+        HALPE26,
+        H36M17,
+        {
+            "pelvis": {"mid_hip": 1.0},
+            "torso": {"neck": 0.5, "mid_hip": 0.5},
+            "head": _HEAD,
         },
     ),
     ("body25", "coco17"): _by_name(BODY25, COCO17, {}),
@@ -450,6 +505,90 @@ def convert_scores(scores: np.ndarray, src: str | Skeleton, dst: str | Skeleton)
     scores = np.asarray(scores, dtype=float)
     big = np.where(W[None] != 0, scores.reshape(-1, 1, W.shape[1]), np.inf)
     return big.min(axis=-1).reshape(*scores.shape[:-1], W.shape[0])
+
+
+#: For :func:`embed`: per source joint set, the joint that fills a slot of another name.
+#: BlazePose's foot index is the tip of the second toe, about 2 cm from the big toe's tip;
+#: the lifter is trained with it in the big-toe slot on BlazePose renders.
+EMBED_ALIASES: dict[str, dict[str, str]] = {
+    "blazepose33": {"left_big_toe": "left_foot_index", "right_big_toe": "right_foot_index"},
+}
+
+
+def embed(points: np.ndarray, src: str | Skeleton, dst: str | Skeleton) -> np.ndarray:
+    """Place joints into another joint set by name; joints ``src`` lacks are NaN.
+
+    Unlike :func:`convert`, nothing is derived: a detector that gives no neck leaves the
+    neck missing, for the lifter to infer. :data:`EMBED_ALIASES` names the few joints that
+    stand in for another (BlazePose's foot index for the big toe).
+
+    Args:
+        points: shape (*, J_src, C). Returns shape (*, J_dst, C).
+
+    >>> import numpy as np
+    >>> x = np.ones((17, 2))
+    >>> y = embed(x, "coco17", "halpe26")
+    >>> y.shape, bool(np.isnan(y[17:]).all()), bool((y[:17] == 1).all())
+    ((26, 2), True, True)
+    """
+    s, d = skeleton_for(src), skeleton_for(dst)
+    points = np.asarray(points, dtype=float)
+    if points.shape[-2] != s.num_joints:
+        raise ValueError(
+            f"points must have {s.num_joints} joints for {s.name!r}, got {points.shape}"
+        )
+    out = np.full((*points.shape[:-2], d.num_joints, points.shape[-1]), np.nan)
+    alias = EMBED_ALIASES.get(s.name, {})
+    for i, name in enumerate(d.joints):
+        source = alias.get(name, name)
+        if source in s._index:
+            out[..., i, :] = points[..., s._index[source], :]
+    return out
+
+
+def embed_scores(scores: np.ndarray, src: str | Skeleton, dst: str | Skeleton) -> np.ndarray:
+    """:func:`embed` for confidences (*, J_src) -> (*, J_dst); joints ``src`` lacks are 0."""
+    out = embed(np.asarray(scores, dtype=float)[..., None], src, dst)[..., 0]
+    return np.nan_to_num(out, nan=0.0)
+
+
+def to_model_joints(
+    keypoints: np.ndarray, scores: np.ndarray, model: str | Skeleton, joints: str | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Put a detector's keypoints (*, J, 2) and scores (*, J) into a model's joint set.
+
+    ``joints`` names the input's joint set; None: the model's own when the joint count
+    matches, else COCO-17 for 17 joints. Joints the input lacks are missing (NaN / 0).
+
+    Raises:
+        ValueError: an unknown joint set, or a joint count that matches neither.
+    """
+    dst = skeleton_for(model)
+    J = np.shape(keypoints)[-2]
+    if joints is None:
+        joints = dst.name if J == dst.num_joints else "coco17" if J == 17 else None
+        if joints is None:
+            raise ValueError(
+                f"keypoints with {J} joints: name their joint set (one of {', '.join(SKELETONS)})"
+            )
+    src = skeleton_for(joints)
+    if J != src.num_joints:
+        raise ValueError(f"joint set {src.name!r} has {src.num_joints} joints, keypoints have {J}")
+    if src.name == dst.name:
+        return np.asarray(keypoints, float), np.asarray(scores, float)
+    return embed(keypoints, src, dst), embed_scores(scores, src, dst)
+
+
+def skeleton_for(name_or_skeleton: str | Skeleton) -> Skeleton:
+    """The :class:`Skeleton` named ``name_or_skeleton`` (or the skeleton itself)."""
+    if isinstance(name_or_skeleton, Skeleton):
+        return name_or_skeleton
+    try:
+        return SKELETONS[name_or_skeleton]
+    except KeyError:
+        raise ValueError(
+            f"unknown joint set {name_or_skeleton!r}; known: {', '.join(SKELETONS)}"
+        ) from None
 
 
 def flip_left_right(points: np.ndarray, skeleton: Skeleton = COCO17) -> np.ndarray:
