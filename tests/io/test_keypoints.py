@@ -70,7 +70,7 @@ def _write_openpose(d: Path, frame: int, people: list[np.ndarray], prefix: str =
 @pytest.mark.shared
 def test_pose2sim_demo_loads_as_coco17(shared_data):
     pose_dir = shared_data / DEMO / "pose"
-    kp = load_keypoints(pose_dir)
+    kp = load_keypoints(pose_dir, to="coco17")
 
     assert kp.views == ["cam01", "cam02", "cam03", "cam04"]
     assert kp.skeleton == "coco17" and kp.num_joints == 17
@@ -215,7 +215,7 @@ def test_zero_points_become_nan_with_zero_score(tmp_path):
 def test_coco18_becomes_coco17(tmp_path):
     p = _person(18, 4)
     _write_openpose(tmp_path / "v", 0, [p])
-    kp = load_keypoints(tmp_path / "v")
+    kp = load_keypoints(tmp_path / "v", to="coco17")
     assert kp.skeleton == "coco17"
     for j, name in enumerate(COCO17.joints):
         np.testing.assert_allclose(kp.keypoints[0, 0, 0, j], p[COCO18.index(name), :2])
@@ -304,7 +304,7 @@ def test_mmpose_video_predictions_halpe26(tmp_path):
     frames = [{"frame_id": f, "instances": [_instance(_person(26, f))]} for f in (0, 1, 2)]
     (tmp_path / "side.json").write_text(json.dumps(frames))
     (tmp_path / "front.json").write_text(json.dumps(frames[1:]))
-    kp = load_keypoints([tmp_path / "front.json", tmp_path / "side.json"])
+    kp = load_keypoints([tmp_path / "front.json", tmp_path / "side.json"], to="coco17")
     assert kp.views == ["front", "side"] and kp.skeleton == "coco17"
     assert kp.frames.tolist() == [0, 1, 2]
     np.testing.assert_allclose(kp.keypoints[2, 1, 0], _person(26, 2)[:17, :2])  # body first
@@ -359,7 +359,7 @@ def test_rmpl_keeps_native_set_or_converts(tmp_path):
     native = load_keypoints(tmp_path / "v", skeleton="body25b", to=None)
     path = save_keypoints(native, tmp_path / "kp.json")
     assert load_keypoints(path, to=None).skeleton == "body25b"
-    again = load_keypoints(path)
+    again = load_keypoints(path, to="coco17")
     assert again.skeleton == "coco17"
     np.testing.assert_allclose(again.keypoints[0, 0, 0], p[:17, :2])
 

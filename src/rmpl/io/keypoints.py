@@ -11,7 +11,12 @@ of shape (T, V, P, J).
   NaN keypoints and zero scores. **People are not associated across views here**: person
   ``p`` of view 0 and person ``p`` of view 1 need not be the same person (nor the same
   person from one frame to the next). Association is a later step.
-- ``J`` joints, COCO-17 after loading unless ``to=None`` keeps the file's joint set.
+- ``J`` joints: by default the richest joint set the file supports, HALPE-26
+  (:data:`rmpl.skeleton.HALPE26`: COCO-17 in COCO's order, then head top, neck, mid-hip and
+  six foot points) when the file's joint set has COCO-17 and any of these nine extra joints,
+  else COCO-17. HALPE-26 joints the file's set lacks are missing (NaN, score 0): a BODY_25
+  file has no head top, COCO-18 only the neck, BlazePose only the heels and its foot index
+  (in the big-toe slot). ``to=`` asks for another joint set; ``to=None`` keeps the file's.
 
 A missing keypoint is NaN pixels with score 0, never a sentinel: the (0, 0, 0) points
 OpenPose and COCO write for undetected joints, and any point at exactly pixel (0, 0) or with
@@ -31,7 +36,11 @@ Formats, chosen with ``format=`` or detected from the content:
     BODY_25 and BODY_25B both have 25 points and cannot be told apart from the data: the
     ``skeleton`` argument decides; without it the ``pose_model`` of a Pose2Sim
     ``Config.toml`` in one of the three directories above the view directory is used, and
-    failing that 25 points are read as BODY_25. 18 points are OpenPose COCO-18.
+    failing that 25 points are read as BODY_25. 18 points are OpenPose COCO-18. Pose2Sim
+    writes the output of every 2D model (RTMPose, AlphaPose, MediaPipe) in this format; the
+    number of points tells the model: 17 COCO-17, 26 HALPE-26, 33 BlazePose, 133
+    COCO-WholeBody (COCO-17, then the six foot points in its own order), 136 Halpe full
+    body (HALPE-26 first).
 
 ``"coco"``
     One JSON file per view, written by MMPose, rtmlib or a COCO tool, in any of these forms:
@@ -48,8 +57,8 @@ Formats, chosen with ``format=`` or detected from the content:
       last digits of the file name (0 without). A directory of such files is one view, one
       frame per file, numbered like OpenPose files.
 
-    17 points are COCO-17; Halpe-26 and COCO-WholeBody-133 keep their first 17 (the COCO-17
-    body, in COCO order).
+    17 points are COCO-17; 26 HALPE-26; 133 COCO-WholeBody, whose first 23 are COCO-17 and
+    the six foot points (its face and hands are dropped).
 
 ``"rmpl"``
     What :func:`save_keypoints` writes: ``.npz``, or ``.json`` with ``"format":
@@ -76,14 +85,25 @@ import numpy as np
 
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
-from rmpl.skeleton import SKELETONS, convert, convert_scores
+from rmpl.skeleton import (
+    COCO17,
+    EMBED_ALIASES,
+    HALPE26,
+    SKELETONS,
+    convert,
+    convert_scores,
+    embed,
+    embed_scores,
+)
 
 __all__ = [
+    "EXTRA_JOINTS",
     "FAR_MARGIN",
     "FORMATS",
     "Keypoints2D",
     "drop_far_keypoints",
     "load_keypoints",
+    "richest",
     "save_keypoints",
 ]
 
@@ -92,13 +112,31 @@ log = logging.getLogger(__name__)
 FORMATS = ("openpose", "coco", "rmpl")
 _TAG = "rmpl.keypoints2d"
 
-# Joint sets found in files that rmpl has no Skeleton for: (number of joints, COCO-17 indices).
+# Joint sets found in files that rmpl has no Skeleton for: (number of joints, index in the
+# file of each HALPE-26 joint the file has). They are read into HALPE-26 (then COCO-17, the
+# first 17 HALPE-26 joints, when asked).
 _COCO18_TO_COCO17 = (0, 15, 14, 17, 16, 5, 2, 6, 3, 7, 4, 11, 8, 12, 9, 13, 10)
-_FOREIGN: dict[str, tuple[int, tuple[int, ...]]] = {
-    "coco18": (18, _COCO18_TO_COCO17),  # OpenPose COCO: nose, neck, right arm, left arm, ...
-    "halpe26": (26, tuple(range(17))),  # Halpe-26 (rtmlib BodyWithFeet): COCO-17 first
-    "wholebody133": (133, tuple(range(17))),  # COCO-WholeBody: COCO-17 body first
+_WHOLEBODY_FEET = (  # COCO-WholeBody points 17-22
+    "left_big_toe",
+    "left_small_toe",
+    "left_heel",
+    "right_big_toe",
+    "right_small_toe",
+    "right_heel",
+)
+_FOREIGN: dict[str, tuple[int, dict[str, int]]] = {
+    # OpenPose COCO: nose, neck, right arm, left arm, right leg, left leg, eyes, ears
+    "coco18": (18, dict(zip(COCO17.joints, _COCO18_TO_COCO17, strict=True)) | {"neck": 1}),
+    # COCO-WholeBody: the COCO-17 body, the six foot points, then face and hands
+    "wholebody133": (
+        133,
+        {n: i for i, n in enumerate(COCO17.joints + _WHOLEBODY_FEET)},
+    ),
+    # Halpe full body (AlphaPose): the 26 HALPE-26 points first, then face and hands
+    "halpe136": (136, {n: i for i, n in enumerate(HALPE26.joints)}),
 }
+#: The joints HALPE-26 adds to COCO-17 (head top, neck, mid-hip and the six foot points).
+EXTRA_JOINTS: tuple[str, ...] = HALPE26.joints[COCO17.num_joints :]
 # The joint set assumed for a number of points when nothing else says.
 _BY_COUNT = {
     17: "coco17",
@@ -107,6 +145,7 @@ _BY_COUNT = {
     26: "halpe26",
     33: "blazepose33",
     133: "wholebody133",
+    136: "halpe136",
 }
 # Pose2Sim Config.toml [pose] pose_model values.
 _POSE2SIM_MODELS = {
@@ -116,7 +155,13 @@ _POSE2SIM_MODELS = {
     "COCO_18": "coco18",
     "COCO_17": "coco17",
     "HALPE_26": "halpe26",
+    "BODY_WITH_FEET": "halpe26",
     "COCO_133": "wholebody133",
+    "COCO_133_WRIST": "wholebody133",
+    "WHOLE_BODY": "wholebody133",
+    "WHOLE_BODY_WRIST": "wholebody133",
+    "BODY": "coco17",
+    "HALPE_136": "halpe136",
     "BLAZEPOSE": "blazepose33",
 }
 _LAST_DIGITS = re.compile(r"(\d+)(?!.*\d)")
@@ -387,7 +432,7 @@ def load_keypoints(
     format: str | None = None,
     skeleton: str | None = None,
     *,
-    to: str | None = "coco17",
+    to: str | None = "auto",
     fps: float | None = None,
 ) -> Keypoints2D:
     """Read 2D keypoints of one or several views.
@@ -397,11 +442,16 @@ def load_keypoints(
             See the module docstring for what each format expects.
         format: ``"openpose"``, ``"coco"`` or ``"rmpl"``; detected from the content when None.
         skeleton: the joint set in the files (``"body25"``, ``"body25b"``, ``"coco18"``,
-            ``"coco17"``, ``"halpe26"``, ``"wholebody133"``, ``"blazepose33"``). Needed to
-            tell BODY_25B from BODY_25 (default BODY_25, unless a Pose2Sim Config.toml says).
-        to: joint set of the result (default COCO-17); None keeps the file's joint set when
-            rmpl has a :class:`~rmpl.skeleton.Skeleton` for it (COCO-18, Halpe-26 and
-            COCO-WholeBody always become COCO-17).
+            ``"coco17"``, ``"halpe26"``, ``"wholebody133"``, ``"halpe136"``,
+            ``"blazepose33"``). Needed to tell BODY_25B from BODY_25 (default BODY_25,
+            unless a Pose2Sim Config.toml says).
+        to: joint set of the result. ``"auto"`` (default): HALPE-26 when the file's joint
+            set has COCO-17 and any of :data:`EXTRA_JOINTS` (feet, neck, head top, mid-hip:
+            BODY_25, BODY_25B, COCO-18, HALPE-26, COCO-WholeBody, BlazePose), placed by name
+            with the joints it lacks missing (:func:`rmpl.skeleton.embed`); else COCO-17.
+            None keeps the file's joint set when rmpl has a
+            :class:`~rmpl.skeleton.Skeleton` for it (COCO-18, COCO-WholeBody and Halpe-136
+            become HALPE-26). A name converts to that joint set.
         fps: frame rate; overrides what the files say (Pose2Sim ``frame_rate``, rmpl files).
 
     Returns:
@@ -424,7 +474,7 @@ def load_keypoints(
         native, file_fps = skeleton, None
         per_view, num_joints = _read_views(named, native, _read_coco_view)
     if native is None:
-        native = _BY_COUNT[num_joints] if num_joints else (to or "coco17")
+        native = _BY_COUNT[num_joints] if num_joints else _fallback_native(to)
     fps = fps if fps is not None else file_fps
     return _assemble(per_view, [n for n, _ in named], native, to, fps)
 
@@ -441,8 +491,8 @@ def _check_load_arguments(named, format: str | None, skeleton: str | None, to: s
         format = found.pop()
     if format not in FORMATS:
         raise InputError(None, "format", f"one of {FORMATS}", repr(format))
-    if to is not None and to not in SKELETONS:
-        raise InputError(None, "to", f"None or one of {sorted(SKELETONS)}", repr(to))
+    if to is not None and to != "auto" and to not in SKELETONS:
+        raise InputError(None, "to", f"'auto', None or one of {sorted(SKELETONS)}", repr(to))
     if skeleton is not None and _num_joints_or_none(skeleton) is None:
         known = sorted(set(SKELETONS) | set(_FOREIGN))
         raise InputError(None, "skeleton", f"None or one of {known}", repr(skeleton))
@@ -455,7 +505,7 @@ def _load_rmpl(named, to: str | None, fps: float | None) -> Keypoints2D:
     kp = _read_rmpl(named[0][1])
     if fps is not None:
         kp.fps = _check_fps(fps)
-    if to is None or to == kp.skeleton:
+    if to is None or to == kp.skeleton or (to == "auto" and richest(kp.skeleton) == kp.skeleton):
         return kp
     xy, sc, name = _convert(kp.keypoints, kp.scores, kp.skeleton, to)
     return Keypoints2D(xy, sc, name, kp.views, kp.frames, kp.fps)
@@ -878,14 +928,56 @@ def _assemble(per_view, views: list[str], native: str, to: str | None, fps) -> K
     return Keypoints2D(xy, sc, name, views, np.array(frames), fps)
 
 
-def _convert(xy: np.ndarray, sc: np.ndarray, native: str, to: str | None):
-    """(*, J_native, 2), (*, J_native) -> the joint set ``to`` (native when None)."""
+def _fallback_native(to: str | None) -> str:
+    """The joint set of a file with nobody in it: the one asked for, else COCO-17."""
+    return to if to in SKELETONS else "coco17"
+
+
+def _provides(native: str) -> set[str]:
+    """Names of the HALPE-26 joints a joint set gives (by name, or an alias standing in)."""
     if native in _FOREIGN:
-        idx = list(_FOREIGN[native][1])
-        xy, sc, native = xy[..., idx, :], sc[..., idx], "coco17"
+        return set(_FOREIGN[native][1])
+    names = set(SKELETONS[native].joints)
+    return names | {dst for dst, src in EMBED_ALIASES.get(native, {}).items() if src in names}
+
+
+def richest(native: str) -> str:
+    """The joint set ``load_keypoints(to="auto")`` gives for a file in ``native``: HALPE-26
+    when ``native`` has the COCO-17 joints and any of :data:`EXTRA_JOINTS`, else COCO-17.
+
+    >>> richest("body25"), richest("coco17"), richest("wholebody133"), richest("h36m17")
+    ('halpe26', 'coco17', 'halpe26', 'coco17')
+    """
+    names = _provides(native)
+    return "halpe26" if set(COCO17.joints) <= names and names & set(EXTRA_JOINTS) else "coco17"
+
+
+def _foreign_to_halpe26(xy: np.ndarray, sc: np.ndarray, native: str):
+    """(*, J_native, 2), (*, J_native) of a joint set in :data:`_FOREIGN` -> HALPE-26."""
+    where = _FOREIGN[native][1]
+    out_xy = np.full((*xy.shape[:-2], HALPE26.num_joints, 2), np.nan)
+    out_sc = np.zeros((*sc.shape[:-1], HALPE26.num_joints))
+    for name, i in where.items():
+        out_xy[..., HALPE26.index(name), :] = xy[..., i, :]
+        out_sc[..., HALPE26.index(name)] = sc[..., i]
+    return out_xy, out_sc
+
+
+def _convert(xy: np.ndarray, sc: np.ndarray, native: str, to: str | None):
+    """(*, J_native, 2), (*, J_native) -> the joint set ``to`` (native when None; see
+    :func:`load_keypoints`)."""
+    if to == "auto":
+        to = richest(native)
+    if native in _FOREIGN:
+        xy, sc = _foreign_to_halpe26(xy, sc, native)
+        native = "halpe26"
+        if to not in (None, "halpe26"):  # others from COCO-17, the first 17 HALPE-26 joints
+            xy, sc, native = xy[..., :17, :], sc[..., :17], "coco17"
     to = to or native
     if to == native:
         return xy, sc, native
+    if to == "halpe26":
+        return embed(xy, native, to), embed_scores(sc, native, to), to
     try:
         xy, sc = convert(xy, native, to), convert_scores(sc, native, to)
     except ValueError as e:
