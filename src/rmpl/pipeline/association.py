@@ -26,7 +26,7 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.skeleton import SKELETONS, convert, convert_scores
+from rmpl.skeleton import COCO17, SKELETONS, convert, convert_scores, embed, embed_scores
 
 __all__ = [
     "BODY25_LIMBS",
@@ -162,7 +162,7 @@ def _limb_connections(candidates: Candidates, cfg: GroupingConfig) -> list[tuple
 
 
 def group_people(
-    candidates: Candidates, config: GroupingConfig | None = None, output: str | None = "coco17"
+    candidates: Candidates, config: GroupingConfig | None = None, output: str | None = "auto"
 ) -> tuple[np.ndarray, np.ndarray]:
     """Group one image's part candidates into people with part affinities.
 
@@ -176,8 +176,11 @@ def group_people(
     Args:
         candidates: the image's candidates and affinities.
         config: thresholds; defaults to :class:`GroupingConfig`.
-        output: joint set to convert to (``"coco17"``), or None to keep
-            ``candidates.skeleton``.
+        output: joint set of the result: ``"auto"`` (default) the richest one the
+            candidates give (:func:`rmpl.io.keypoints.richest`: HALPE-26 for BODY_25, whose
+            neck, mid-hip and feet it keeps; COCO-17 for COCO-17), None
+            ``candidates.skeleton``, or a joint set's name. The grouping itself is the
+            same whatever the output.
 
     Returns:
         keypoints, shape (P, J, 2), pixels, NaN where missing; scores, shape (P, J),
@@ -228,10 +231,21 @@ def group_people(
     kp, sc = np.array(kps).reshape(-1, J, 2), np.array(scs).reshape(-1, J)
     order = np.argsort(-sc.sum(-1), kind="stable")
     kp, sc = kp[order], sc[order]
-    if output is not None and output != candidates.skeleton:
-        kp = convert(kp, candidates.skeleton, output)
-        sc = np.where(np.isfinite(kp).all(-1), convert_scores(sc, candidates.skeleton, output), 0.0)
-    return kp, sc
+    return _output_joints(kp, sc, candidates.skeleton, output)
+
+
+def _output_joints(kp: np.ndarray, sc: np.ndarray, native: str, output: str | None):
+    """(P, J, 2), (P, J) in ``native`` -> ``output`` (see :func:`group_people`)."""
+    from rmpl.io.keypoints import richest
+
+    if output == "auto":
+        output = richest(native)
+    if output is None or output == native:
+        return kp, sc
+    if output == "halpe26":  # by name: joints the native set lacks are missing
+        return embed(kp, native, output), embed_scores(sc, native, output)
+    kp = convert(kp, native, output)
+    return kp, np.where(np.isfinite(kp).all(-1), convert_scores(sc, native, output), 0.0)
 
 
 @dataclass(frozen=True)
@@ -409,11 +423,30 @@ def _check_people(keypoints, scores, num_views: int):
     return kps, scs, J
 
 
+def _grouping_joints(num_joints: int, skeleton: str | None) -> list[int]:
+    """Indices of the joints :func:`associate` compares: the COCO-17 ones when the joint set
+    has them all, else every joint."""
+    if skeleton is None:
+        skeleton = {17: "coco17", 26: "halpe26"}.get(num_joints)
+    if skeleton is not None:
+        if skeleton not in SKELETONS:
+            raise InputError(None, "skeleton", f"None or one of {sorted(SKELETONS)}", skeleton)
+        sk = SKELETONS[skeleton]
+        if num_joints and sk.num_joints != num_joints:
+            raise InputError(
+                None, "skeleton", f"a joint set of {num_joints} joints", f"{skeleton!r}"
+            )
+        if set(COCO17.joints) <= set(sk.joints):
+            return sk.indices(COCO17.joints)
+    return list(range(num_joints))
+
+
 def associate(
     keypoints: Sequence[np.ndarray],
     scores: Sequence[np.ndarray],
     rig: Rig,
     config: AssociationConfig | None = None,
+    skeleton: str | None = None,
 ) -> Association:
     """Associate the 2D people of V calibrated views into 3D people.
 
@@ -423,15 +456,22 @@ def associate(
     (average linkage up to ``max_cost``, at most one 2D person per view per 3D person).
     3D people seen in fewer than ``min_views`` views are dropped.
 
+    The cost uses the COCO-17 joints of a joint set that has them all (HALPE-26's first
+    17), so that a detector's feet, neck or head top change no decision: a COCO-17 input
+    and the same people with extra joints are grouped alike. Every joint is carried into
+    the result.
+
     Args:
         keypoints: per view, shape (P_v, J, 2), pixels (NaN = missing joint).
         scores: per view, shape (P_v, J).
         rig: the V cameras, in the order of ``keypoints``.
         config: thresholds; defaults to :class:`AssociationConfig`.
+        skeleton: the joint set of ``keypoints``; None: COCO-17 for 17 joints, HALPE-26 for
+            26, otherwise every joint enters the cost.
 
     Returns:
-        :class:`Association`, people sorted by descending number of views, then by
-        descending total score.
+        :class:`Association` with the input's J joints, people sorted by descending number
+        of views, then by descending total score (of the joints the cost uses).
 
     Raises:
         InputError: when the per-view arrays do not match the rig or each other.
@@ -444,7 +484,9 @@ def associate(
     kp_all = np.concatenate(kps).reshape(-1, J, 2)
     sc_all = np.where(np.isfinite(kp_all).all(-1), np.nan_to_num(np.concatenate(scs)), 0.0)
     sc_all = sc_all.reshape(-1, J)
-    labels = cluster_people(ray_distance_cost(kp_all, sc_all, views, rig, cfg), views, cfg.max_cost)
+    use = _grouping_joints(J, skeleton)
+    cost = ray_distance_cost(kp_all[:, use], sc_all[:, use], views, rig, cfg)
+    labels = cluster_people(cost, views, cfg.max_cost)
     C = int(labels.max()) + 1 if len(labels) else 0
     members = np.full((C, V), -1, dtype=int)
     members[labels, views] = index
@@ -453,7 +495,7 @@ def associate(
     out_kp[labels, views] = kp_all
     out_sc[labels, views] = sc_all
     keep = (members >= 0).sum(-1) >= cfg.min_views
-    order = np.lexsort((-out_sc.sum((-1, -2)), -(members >= 0).sum(-1)))
+    order = np.lexsort((-out_sc[..., use].sum((-1, -2)), -(members >= 0).sum(-1)))
     order = order[keep[order]]
     return Association(out_kp[order], out_sc[order], members[order])
 
@@ -463,7 +505,7 @@ def associate_candidates(
     rig: Rig,
     grouping: GroupingConfig | None = None,
     association: AssociationConfig | None = None,
-    output: str = "coco17",
+    output: str = "auto",
 ) -> Association:
     """Group every view's part candidates (:func:`group_people`), then :func:`associate`.
 
@@ -471,15 +513,24 @@ def associate_candidates(
         candidates: one :class:`Candidates` per camera of ``rig``.
         rig: the V cameras.
         grouping, association: thresholds of the two steps.
-        output: joint set of the result (see :data:`rmpl.skeleton.SKELETONS`).
+        output: joint set of the result: ``"auto"`` (the richest the candidates give, see
+            :func:`group_people`) or a name in :data:`rmpl.skeleton.SKELETONS`.
 
     Returns:
-        :class:`Association` in the ``output`` joint set.
+        :class:`Association` in the ``output`` joint set (people grouped on its COCO-17
+        joints, see :func:`associate`).
     """
-    if output not in SKELETONS:
-        raise InputError(None, "output", f"one of {sorted(SKELETONS)}", output)
+    if output != "auto" and output not in SKELETONS:
+        raise InputError(None, "output", f"'auto' or one of {sorted(SKELETONS)}", output)
     people = [group_people(c, grouping, output) for c in candidates]
-    return associate([p[0] for p in people], [p[1] for p in people], rig, association)
+    skeleton = None
+    if candidates:
+        from rmpl.io.keypoints import richest
+
+        skeleton = richest(candidates[0].skeleton) if output == "auto" else output
+    return associate(
+        [p[0] for p in people], [p[1] for p in people], rig, association, skeleton=skeleton
+    )
 
 
 def match_poses(
