@@ -27,7 +27,12 @@ Every per-frame estimate is a log-scale with a standard deviation from a stated 
 joint's ray implied by that standard deviation (``0.674 sigma |X_j - C|``); it leaves out the
 lifter's shape error.
 
-Shape glossary: ``T`` frames, ``N`` people in one frame, ``P`` tracks, ``J`` joints (COCO-17).
+The lifter's poses are COCO-17 or HALPE-26 (its first 17 joints are COCO-17): the cues read
+COCO-17 joints by their index (ankles, knees, hips, shoulders), so they see the same joints
+in both, and the chosen depth moves every joint (head top, neck, mid-hip and feet too).
+
+Shape glossary: ``T`` frames, ``N`` people in one frame, ``P`` tracks, ``J`` joints (COCO-17,
+or the lifter's joint set where said).
 Units: metres, seconds; scales are dimensionless, "log" means natural logarithm.
 """
 
@@ -74,7 +79,8 @@ STATURE_RATIO = 0.779
 #: The 50% radius of a one-dimensional normal error, in standard deviations.
 RADIUS_50_1D = 0.674
 
-_J = {name: COCO17.index(name) for name in COCO17.joints}
+_J = {name: COCO17.index(name) for name in COCO17.joints}  # the first 17 of HALPE-26 too
+_SKELETON_BY_COUNT = {17: "coco17", 26: "halpe26"}
 _ANKLES = [_J["left_ankle"], _J["right_ankle"]]
 _HIPS = [_J["left_hip"], _J["right_hip"]]
 
@@ -354,7 +360,8 @@ def floor_from_poses(
     below their median height.
 
     Args:
-        points: COCO-17 poses (..., 17, 3) metres, NaN = missing (e.g. (T, P, 17, 3)).
+        points: COCO-17 poses (..., 17, 3) metres, NaN = missing (e.g. (T, P, 17, 3)), or
+            HALPE-26 ones (..., 26, 3) (their first 17 joints are used).
         up: the world up direction (3,), e.g. :func:`rmpl.inference.estimate_up` of the rig;
             None: the median trunk direction (mid-hip to mid-shoulder) of the poses, people
             being mostly upright. The floor's normal is refitted to the ankles when they
@@ -366,7 +373,7 @@ def floor_from_poses(
     from rmpl.geometry.floor import fit_floor
 
     cfg = config or MonocularConfig()
-    x = np.asarray(points, float).reshape(-1, COCO17.num_joints, 3)
+    x = np.asarray(points, float)[..., : COCO17.num_joints, :].reshape(-1, COCO17.num_joints, 3)
     if up is None:
         shoulders = x[:, [_J["left_shoulder"], _J["right_shoulder"]]].mean(1)
         trunk = shoulders - x[:, _HIPS].mean(1)
@@ -557,9 +564,10 @@ class MonocularResult:
     """Poses of one view after the depth cues.
 
     Attributes:
-        points: (T, P, 17, 3) metres. sigma: (T, P) log-depth standard deviation.
-        views: (T, P, 17) view counts. ids: (P,). tracks: per track, its
-            :class:`TrackDepth` (time cue) or None.
+        points: (T, P, J, 3) metres, J the lifter's joints. sigma: (T, P) log-depth
+            standard deviation. views: (T, P, J) view counts. ids: (P,). tracks: per
+            track, its :class:`TrackDepth` (time cue) or None. skeleton: the name of the
+            joint set of ``points``.
     """
 
     points: np.ndarray
@@ -567,9 +575,10 @@ class MonocularResult:
     views: np.ndarray
     ids: np.ndarray
     tracks: list
+    skeleton: str = "coco17"
 
     def radius(self, center: np.ndarray) -> np.ndarray:
-        """The 50% radius of the depth error along each joint's ray, metres (T, P, 17)."""
+        """The 50% radius of the depth error along each joint's ray, metres (T, P, J)."""
         dist = np.linalg.norm(self.points - center, axis=-1)
         return RADIUS_50_1D * self.sigma[..., None] * dist
 
@@ -596,12 +605,14 @@ def monocular_people(
     config: MonocularConfig,
     run_config=None,
     lift=None,
+    joints: str | None = None,
 ) -> MonocularResult:
     """Lift the people of one view, then choose their depths with the cues.
 
     Args:
-        kp: the 2D people (M, 1, 17, 2) pixels, each in frame ``frame`` (M,).
-        sc: (M, 1, 17).
+        kp: the 2D people (M, 1, J_2d, 2) pixels, each in frame ``frame`` (M,); COCO-17 or
+            HALPE-26 (the floor cue reads the ankles' rays, joints 15 and 16 of both).
+        sc: (M, 1, J_2d).
         num_frames: T.
         rig: one camera.
         fps: frames per second (the time cue needs it; None: 25 is assumed for the
@@ -610,14 +621,16 @@ def monocular_people(
         config: the cues and their constants.
         run_config: :class:`rmpl.pipeline.runner.RunConfig` (model, tracker settings).
         lift: ``fn(kp, sc, rig) -> (points, num_views)`` instead of the config's lifter.
+        joints: the 2D's joint set (None: by its joint count).
 
     Returns:
         :class:`MonocularResult` of T frames and P people (tracks with "time", else the
-        people of each frame in their order, P = the most in one frame).
+        people of each frame in their order, P = the most in one frame), in the lifter's
+        joint set.
     """
     from rmpl.geometry.rays import rays_from_keypoints
     from rmpl.pipeline.association import Association
-    from rmpl.pipeline.runner import RunConfig, estimate
+    from rmpl.pipeline.runner import RunConfig, _estimator, estimate
 
     if len(rig) != 1:
         raise ValueError(f"monocular lifting takes one camera, got {len(rig)}")
@@ -627,16 +640,18 @@ def monocular_people(
     center = rig.centers[0]
     rows = [np.flatnonzero(frame == t) for t in range(num_frames)]
     people = [Association(kp[r], sc[r], np.zeros((len(r), 1), int)) for r in rows]
-    per_frame, views = estimate(people, rig, cfg, fn=lift)  # lists of (N, 17, 3), (N, 17)
-    J = COCO17.num_joints
+    fn = lift or _estimator(cfg, joints=joints)
+    per_frame, views = estimate(people, rig, cfg, fn=fn)  # lists of (N, J, 3), (N, J)
+    J = per_frame[0].shape[-2] if per_frame else COCO17.num_joints
+    skeleton = getattr(fn, "skeleton", None) or _SKELETON_BY_COUNT.get(J, "coco17")
     pts = np.concatenate(per_frame) if len(kp) else np.zeros((0, J, 3))
-    rays = rays_from_keypoints(np.nan_to_num(kp), rig)[:, 0]  # (M, 17, 6)
+    rays = rays_from_keypoints(np.nan_to_num(kp), rig)[:, 0]  # (M, J_2d, 6)
     cues = frame_cues(pts, rays, sc[:, 0], center, floor, up, config)
     log_s, sd = per_frame_log_scale(cues, config)
-    scaled = _scaled(pts, center, log_s)
+    scaled = _scaled(pts, center, log_s)  # every joint moves with the depth
     split = np.cumsum([len(r) for r in rows])[:-1]
     if "time" not in config.cues:
-        return _by_frame(np.split(scaled, split), np.split(sd, split), views)
+        return _by_frame(np.split(scaled, split), np.split(sd, split), views, J, skeleton)
     index, ids = _track_index(np.split(scaled, split), cfg)
     P = index.shape[1]
     out = np.full((num_frames, P, J, 3), np.nan)
@@ -656,7 +671,7 @@ def monocular_people(
         sigma[t_idx, p] = depth.sd
         nv[t_idx, p] = np.concatenate(views)[m]
         depths.append(depth)
-    return MonocularResult(out, sigma, nv, ids, depths)
+    return MonocularResult(out, sigma, nv, ids, depths, skeleton)
 
 
 def _track_index(points: list[np.ndarray], cfg):
@@ -669,23 +684,23 @@ def _track_index(points: list[np.ndarray], cfg):
     return track_index(points, cfg)
 
 
-def _by_frame(points: list, sds: list, views: list) -> MonocularResult:
+def _by_frame(points: list, sds: list, views: list, J: int, skeleton: str) -> MonocularResult:
     """Per-frame results in (T, N_max) slots, no identities."""
-    T, J = len(points), COCO17.num_joints
+    T = len(points)
     P = max([len(p) for p in points] + [0])
     out = np.full((T, P, J, 3), np.nan)
     sigma = np.full((T, P), np.nan)
     nv = np.zeros((T, P, J), int)
     for t, (p, s, v) in enumerate(zip(points, sds, views, strict=True)):
         out[t, : len(p)], sigma[t, : len(p)], nv[t, : len(p)] = p, s, v
-    return MonocularResult(out, sigma, nv, np.arange(P), [None] * P)
+    return MonocularResult(out, sigma, nv, np.arange(P), [None] * P, skeleton)
 
 
 def lift_stretch(kp, sc, frame, num_frames, rig, fps, floor, config, run_config=None, lift=None):
     """:func:`monocular_people`, then (with "time") the runner's filters, as predictions.
 
     Returns:
-        predictions (M', 17, 3) and their frame indices (M',), as a sequence method gives
+        predictions (M', J, 3) and their frame indices (M',), as a sequence method gives
         them to the evaluation harness.
     """
     from rmpl.pipeline.runner import RunConfig, smooth
@@ -709,11 +724,13 @@ def lift_single_view(
     config=None,
     monocular: MonocularConfig | None = None,
     temporal: bool = True,
+    joints: str | None = None,
 ) -> Poses3D:
     """``rmpl run`` / ``rmpl lift`` with one camera: the lifter, then depth from the cues.
 
     Args:
-        keypoints: (T, 1, P, 17, 2) pixels (NaN = missing). scores: (T, 1, P, 17).
+        keypoints: (T, 1, P, J, 2) pixels (NaN = missing), COCO-17 or HALPE-26 (J = 17 or
+            26). scores: (T, 1, P, J).
         rig: one camera.
         frames, fps: as :func:`rmpl.pipeline.runner.run`.
         floor: the floor (:mod:`rmpl.geometry.floor`), or None: the size prior (and time)
@@ -721,10 +738,11 @@ def lift_single_view(
         config: :class:`rmpl.pipeline.runner.RunConfig` (method "rmpl", a per-frame model).
         monocular: the cues (default: all three).
         temporal: apply the runner's filters (:func:`rmpl.pipeline.runner.smooth`).
+        joints: the 2D's joint set (None: by its joint count).
 
     Returns:
-        :class:`Poses3D`, per-joint uncertainty = the 50% radius of the depth error along
-        the ray (metres).
+        :class:`Poses3D` in the lifter's joint set, per-joint uncertainty = the 50% radius
+        of the depth error along the ray (metres).
     """
     from rmpl.pipeline.runner import RunConfig, drop_far, smooth
 
@@ -736,9 +754,9 @@ def lift_single_view(
     keypoints, scores = drop_far(keypoints, scores, rig)
     present = (scores > 0).any(-1)[:, 0]  # (T, P)
     t_idx, p_idx = np.nonzero(present)
-    kp = keypoints[t_idx, :, p_idx]  # (M, 1, 17, 2)
+    kp = keypoints[t_idx, :, p_idx]  # (M, 1, J_2d, 2)
     sc = scores[t_idx, :, p_idx]
-    res = monocular_people(kp, sc, t_idx, T, rig, fps, floor, mono, cfg)
+    res = monocular_people(kp, sc, t_idx, T, rig, fps, floor, mono, cfg, joints=joints)
     tracks = res.points
     interpolated = np.zeros(tracks.shape[:-1], bool)
     if temporal and len(tracks):
@@ -760,7 +778,7 @@ def lift_single_view(
         points=tracks,
         flags=flags.astype(np.uint8),
         num_views=np.where(ok, res.views, 0).astype(np.int32),
-        skeleton="coco17",
+        skeleton=res.skeleton,
         frames=np.arange(T) if frames is None else np.asarray(frames),
         fps=fps,
         person_ids=np.asarray(res.ids),

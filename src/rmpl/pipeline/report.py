@@ -25,6 +25,12 @@ What is measured (the report states the same):
   interpolation (flag INTERPOLATED), the estimated standing height
   (:func:`rmpl.anthropometry.estimate_height`), and the view check's verdict.
 
+Joint sets: the rows are the 3D's joints (``Poses3D.skeleton``, COCO-17 or HALPE-26). The
+2D is placed into that joint set by name (:func:`rmpl.skeleton.embed`): a joint the 2D lacks
+(HALPE-26's head top, neck, mid-hip and feet from a COCO-17 detector) has no 2D, so no
+reprojection error and 0 views with 2D, and its row still gives the views the estimator
+used.
+
 Shape glossary: ``T`` frames, ``P`` people, ``V`` views, ``J`` joints.
 """
 
@@ -48,7 +54,7 @@ from rmpl.pipeline.consistency import (
     format_ranges,
     person_2d,
 )
-from rmpl.skeleton import SKELETONS
+from rmpl.skeleton import SKELETONS, embed, embed_scores
 
 __all__ = ["RunReport", "build_report", "log_summary", "write_report"]
 
@@ -196,7 +202,9 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
     Args:
         poses: the run's result (:func:`rmpl.pipeline.runner.run`).
         inputs: the run's :class:`rmpl.pipeline.inputs.Inputs` (rig, 2D keypoints
-            (T, V, N, J, 2), scores (T, V, N, J)).
+            (T, V, N, J_2d, 2), scores (T, V, N, J_2d); their joint set is
+            ``inputs.skeleton`` when it has one, else COCO-17 for 17 joints, HALPE-26 for
+            26, the poses' own for as many joints as the poses).
         config: the view check's settings.
 
     Returns:
@@ -220,7 +228,7 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
     elif membership is None:
         notes.append("the poses do not say which 2D person each track used: no per-view figures")
     else:
-        kp2, sc2 = person_2d(kp, sc, membership)
+        kp2, sc2 = _in_joints_of(poses, *person_2d(kp, sc, membership), inputs)
         mirror = SKELETONS[poses.skeleton].flip_permutation()
         consistency = check_views(pts, kp2, sc2, rig, heights, config, mirror)
         poses = dataclasses.replace(
@@ -257,6 +265,26 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
     return RunReport(
         poses, consistency, height_notes, people, cameras, joints, disagreements, notes
     )
+
+
+_BY_COUNT = {17: "coco17", 26: "halpe26"}
+
+
+def _in_joints_of(poses: Poses3D, kp2: np.ndarray, sc2: np.ndarray, inputs):
+    """Each person's 2D (T, P, V, J_2d, 2) and scores placed into the poses' joint set by
+    name (joints the 2D lacks: NaN / 0)."""
+    J2 = kp2.shape[-2]
+    name = getattr(inputs, "skeleton", None)
+    if name is None:
+        name = poses.skeleton if J2 == len(poses.joint_names) else _BY_COUNT.get(J2)
+    if name == poses.skeleton:
+        return kp2, sc2
+    if name not in SKELETONS or SKELETONS[name].num_joints != J2:
+        raise InputError(
+            None, "keypoints", f"2D of a known joint set ({poses.skeleton}, coco17, halpe26)",
+            f"{J2} joints",
+        )  # fmt: skip
+    return embed(kp2, name, poses.skeleton), embed_scores(sc2, name, poses.skeleton)
 
 
 def _reprojection(pts, kp2, sc2, rig, measured):

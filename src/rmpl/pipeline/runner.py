@@ -157,11 +157,40 @@ def associate_frames(
     ]
 
 
-def _estimator(config: RunConfig, used: bool = False):
+def input_skeleton(num_joints: int, joints: str | None = None) -> str:
+    """The name of a 2D input's joint set: ``joints``, else COCO-17 for 17 joints and
+    HALPE-26 for 26 (the two sets ``rmpl run`` reads 2D in; both begin with COCO-17).
+
+    Raises:
+        InputError: ``joints`` unknown or of another joint count, or None with a count
+            other than 17 or 26.
+    """
+    from rmpl.skeleton import SKELETONS
+
+    name = joints if joints is not None else _BY_COUNT.get(num_joints)
+    if name not in SKELETONS or SKELETONS[name].num_joints != num_joints:
+        raise InputError(
+            None, "keypoints", "17 (COCO-17) or 26 (HALPE-26) joints, or a named joint set of "
+            "that many", f"{num_joints} joints ({joints or 'unnamed'})",
+        )  # fmt: skip
+    return name
+
+
+_BY_COUNT = {17: "coco17", 26: "halpe26"}
+_COCO_JOINTS = 17  # COCO-17 is the first 17 joints of both output sets
+
+
+def _estimator(config: RunConfig, used: bool = False, joints: str | None = None):
     """``fn(kp, sc, rig) -> (points, num_views)``, or with ``used`` ``(points, num_views,
-    views used (N, V, J) bool)``."""
+    views used (N, V, J) bool)``, J the output's joints.
+
+    ``joints`` names the 2D's joint set (None: by its joint count, :func:`input_skeleton`).
+    The function's attribute ``skeleton`` names the output's joint set when known before
+    the first call: the lifter's own (:attr:`rmpl.Lifter.skeleton`); triangulation keeps
+    the 2D's (``fn.skeleton`` is then ``joints``, possibly None).
+    """
     from rmpl.geometry.triangulate import triangulate, triangulate_robust
-    from rmpl.skeleton import COCO17
+    from rmpl.skeleton import SKELETONS, to_model_joints
 
     def out(points, num_views, mask):
         return (points, num_views, mask) if used else (points, num_views)
@@ -171,25 +200,40 @@ def _estimator(config: RunConfig, used: bool = False):
 
         lifter = Lifter.from_pretrained(config.model)
         up = None if config.up is None else np.asarray(config.up, float)
+        skeleton = lifter.skeleton
 
         def lift(kp, sc, rig):
-            r = lifter.lift(kp, sc, rig, up=up)
+            name = input_skeleton(kp.shape[-2], joints)
+            r = lifter.lift(kp, sc, rig, up=up, joints=name)
+            if name != skeleton.name:  # the views used, in the model's joints
+                kp, sc = to_model_joints(kp, sc, skeleton, name)
             return out(r.points, r.num_views, np.isfinite(kp).all(-1) & (sc > 0))
 
+        lift.skeleton = skeleton.name
         return lift
+
+    def triangulated(r):
+        return out(r.points, r.num_views, r.views)
+
     if config.method == "robust":
-        kwargs = {
-            "min_score": 0.3 if config.min_score is None else config.min_score,
-            "max_error": config.max_error,
-            "swap_pairs": COCO17.flip_pairs if config.swap_check else None,
-        }
-        return lambda kp, sc, rig: (lambda r: out(r.points, r.num_views, r.views))(
-            triangulate_robust(kp, sc, rig, **kwargs)
-        )
+        min_score = 0.3 if config.min_score is None else config.min_score
+
+        def robust(kp, sc, rig):
+            name = joints or _BY_COUNT.get(kp.shape[-2])  # left/right swaps need the names
+            pairs = SKELETONS[name].flip_pairs if name in SKELETONS else None
+            kwargs = {"min_score": min_score, "max_error": config.max_error}
+            kwargs["swap_pairs"] = pairs if config.swap_check else None
+            return triangulated(triangulate_robust(kp, sc, rig, **kwargs))
+
+        robust.skeleton = joints
+        return robust
     min_score = config.min_score or 0.0
-    return lambda kp, sc, rig: (lambda r: out(r.points, r.num_views, r.views))(
-        triangulate(kp, sc, rig, min_score=min_score)
-    )
+
+    def dlt(kp, sc, rig):
+        return triangulated(triangulate(kp, sc, rig, min_score=min_score))
+
+    dlt.skeleton = joints
+    return dlt
 
 
 def estimate(
@@ -200,42 +244,48 @@ def estimate(
     progress: bool = False,
     fn=None,
     used: bool = False,
+    joints: str | None = None,
 ) -> tuple[list[np.ndarray], ...]:
     """3D joints of every associated person, batched over frames.
 
     ``fn(kp, sc, rig) -> (points, num_views)`` replaces the estimator ``config`` names
-    (with ``used``, ``fn`` must also return the views used, (N, V, J) bool).
+    (with ``used``, ``fn`` must also return the views used, (N, V, J) bool). ``joints``
+    names the 2D's joint set (None: by its joint count); the lifter answers in its own
+    (:attr:`rmpl.Lifter.skeleton`).
 
     Returns:
         Per frame: points (N, J, 3) metres and the number of views per joint (N, J); with
-        ``used`` also which views each joint used (N, V, J) bool.
+        ``used`` also which views each joint used (N, V, J) bool. J is the output's.
     """
     from tqdm import tqdm
 
-    fn = fn or _estimator(config, used=used)
+    fn = fn or _estimator(config, used=used, joints=joints)
     counts = [len(a) for a in people]
     if sum(counts) == 0:
         J = people[0].keypoints.shape[-2] if people else 17
+        J = _num_joints(getattr(fn, "skeleton", None), J)
         V = people[0].keypoints.shape[1] if people else 0
         empty = [np.zeros((0, J, 3)) for _ in people], [np.zeros((0, J), int) for _ in people]
         return (*empty, [np.zeros((0, V, J), bool) for _ in people]) if used else empty
     kp = np.concatenate([a.keypoints for a in people if len(a)])
     sc = np.concatenate([a.scores for a in people if len(a)])
-    pts = np.empty((len(kp), kp.shape[-2], 3))
-    nv = np.empty((len(kp), kp.shape[-2]), int)
-    mask = np.zeros(sc.shape, bool)  # (all people, V, J)
     starts = range(0, len(kp), chunk)
     if progress and len(kp) > chunk:
         starts = tqdm(starts, desc=config.method, unit="chunk")
-    for s in starts:
-        r = fn(kp[s : s + chunk], sc[s : s + chunk], rig)
-        pts[s : s + chunk], nv[s : s + chunk] = r[0], r[1]
-        if used:
-            mask[s : s + chunk] = r[2]
+    answers = [fn(kp[s : s + chunk], sc[s : s + chunk], rig) for s in starts]
+    pts = np.concatenate([r[0] for r in answers]).astype(float)  # (all people, J, 3)
+    nv = np.concatenate([r[1] for r in answers]).astype(int)
     split = np.cumsum(counts)[:-1]
     if used:
+        mask = np.concatenate([r[2] for r in answers]).astype(bool)  # (all people, V, J)
         return np.split(pts, split), np.split(nv, split), np.split(mask, split)
     return np.split(pts, split), np.split(nv, split)
+
+
+def _num_joints(skeleton: str | None, default: int) -> int:
+    from rmpl.skeleton import SKELETONS
+
+    return SKELETONS[skeleton].num_joints if skeleton in SKELETONS else default
 
 
 def track_people(
@@ -281,6 +331,8 @@ def view_records(
             :func:`associate_frames` saw them: its per-view lists hold only these.
         num_views: per frame, views per joint (N, J) of the estimator; with ``used``.
         used: per frame, the views each joint used (N, V, J) bool; None: nothing left out.
+            J is the estimator's (the lifter's joint set may differ from the 2D's: the
+            joints both begin with, COCO-17, are compared).
 
     Returns:
         membership (T, P, V): the index on the 2D input's people axis, -1 where none;
@@ -298,20 +350,25 @@ def view_records(
             membership[t, p, v] = np.flatnonzero(present[t, v])[m[v]]
         if used is not None:
             a = people[t]
-            available = np.isfinite(a.keypoints[n]).all(-1) & (a.scores[n] > 0)  # (V, J)
+            available = np.isfinite(a.keypoints[n]).all(-1) & (a.scores[n] > 0)  # (V, J_2d)
             estimated = num_views[t][n] > 0  # (J,)
-            excluded[t, p] = (available & ~used[t][n] & estimated).sum(-1)
+            J = min(available.shape[-1], len(estimated))  # the joints both sets share
+            excluded[t, p] = (available[:, :J] & ~used[t][n][:, :J] & estimated[:J]).sum(-1)
     return membership, excluded
 
 
 def track_index(points: list[np.ndarray], config: RunConfig) -> tuple[np.ndarray, np.ndarray]:
     """Identities over time as indices: (T, P) the person of each track in each frame (-1
     where absent) and the track ids (P,). Tracks in fewer than ``min_track_frames`` frames
-    are dropped."""
+    are dropped.
+
+    The tracker matches people on the COCO-17 joints, the first 17 of every joint set rmpl
+    answers in (HALPE-26's head top, neck, mid-hip and feet do not vote), so that a COCO-17
+    and a HALPE-26 answer are tracked alike."""
     from rmpl.pipeline.tracking import track_indices
 
     kwargs = {"max_distance": config.track_distance, "max_missed": config.max_missed}
-    index = track_indices(points, **kwargs)
+    index = track_indices([p[:, :_COCO_JOINTS] for p in points], **kwargs)
     ids = np.arange(index.shape[1], dtype=np.int64)
     seen = np.zeros(index.shape, bool)  # a track has a joint in that frame
     for t, p in zip(*np.nonzero(index >= 0), strict=True):
@@ -360,20 +417,31 @@ def _is_temporal(cfg: RunConfig) -> bool:
     return cfg.method == "rmpl" and is_temporal_checkpoint(cfg.model)
 
 
-def lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: RunConfig):
+def lift_people(
+    people: list[Association],
+    rig: Rig,
+    fps: float | None,
+    cfg: RunConfig,
+    joints: str | None = None,
+):
     """Track the associated people with per-frame estimates, then lift each track with the
     temporal model ``cfg.model``.
+
+    Args:
+        joints: the 2D's joint set (None: by its joint count, :func:`input_skeleton`).
 
     Returns:
         tracks (T, P, J, 3), uncertainty (T, P, J) (the 50% error radius, metres), views
         (T, P, J), ids (P,) and interpolated (T, P, J): frames the model filled, where the
-        track had no 2D.
+        track had no 2D. J is the model's (:attr:`TemporalLifter.skeleton
+        <rmpl.inference_temporal.TemporalLifter.skeleton>`).
     """
-    return _lift_people(people, rig, fps, cfg)[:5]
+    return _lift_people(people, rig, fps, cfg, joints)[:5]
 
 
-def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: RunConfig):
-    """:func:`lift_people` plus the index (T, P) of each track's person per frame."""
+def _lift_people(people, rig: Rig, fps: float | None, cfg: RunConfig, joints: str | None):
+    """:func:`lift_people` plus the index (T, P) of each track's person per frame and the
+    model's joint set."""
     from rmpl.inference import Lifter
     from rmpl.inference_temporal import TemporalLifter
     from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
@@ -383,27 +451,36 @@ def _lift_people(people: list[Association], rig: Rig, fps: float | None, cfg: Ru
     lifter = TemporalLifter.from_pretrained(cfg.model)
     frame = Lifter(lifter.model.frame_model)
     up = None if cfg.up is None else np.asarray(cfg.up, float)
-    fn = lambda kp, sc, r: (lambda x: (x.points, x.num_views))(frame.lift(kp, sc, r, up=up))  # noqa: E731
+
+    def fn(kp, sc, r):
+        x = frame.lift(kp, sc, r, up=up, joints=input_skeleton(kp.shape[-2], joints))
+        return x.points, x.num_views
+
     log.info(
         "the temporal model lifts whole tracks with its own assembly and filters "
         "(%s); --filter and --cutoff do not apply", lifter.assemble,
     )  # fmt: skip
     pts, _ = estimate(people, rig, cfg, fn=fn)
     J = lifter.num_joints
+    name = lifter.skeleton.name
     if not any(len(p) for p in pts):  # nobody anywhere: an empty result (refused upstream)
         T = len(pts)
         empty = np.zeros((T, 0, J))
         index = np.zeros((T, 0), int)
-        return np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0, index
+        return (
+            np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0, index,
+            name,
+        )  # fmt: skip
     if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
     else:
         index, ids = track_index(pts, cfg)
     kp, sc = tracks_2d(people, index)
-    tracks, radius, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up)
+    named = input_skeleton(kp.shape[-2], joints)
+    tracks, radius, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up, named)
     filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
     interpolated = filled & np.isfinite(tracks).all(-1)
-    return tracks, radius, views, ids, interpolated, index
+    return tracks, radius, views, ids, interpolated, index, name
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:
@@ -439,8 +516,13 @@ def run(
     config: RunConfig | None = None,
     temporal: bool = True,
     progress: bool = True,
+    joints: str | None = None,
 ) -> Poses3D:
     """The whole chain on 2D input (T, V, P, J, 2) + scores (T, V, P, J).
+
+    The answer's joint set (``Poses3D.skeleton``) is the lifter's own with "rmpl" (COCO-17,
+    or HALPE-26: COCO-17 then head top, neck, mid-hip and six foot points), whatever the
+    2D's; triangulation keeps the 2D's.
 
     Keypoints more than one image size beyond their image (cameras with a known size) are
     treated as missing and counted in a warning; a Butterworth cut-off at or above the
@@ -448,6 +530,8 @@ def run(
 
     Args:
         temporal: apply :func:`smooth` (outliers, gaps, filter); False keeps raw estimates.
+        joints: the 2D's joint set (a name in :data:`rmpl.skeleton.SKELETONS`); None: by
+            its joint count, COCO-17 for 17 and HALPE-26 for 26.
 
     Returns:
         :class:`Poses3D` with per-joint source flags and view counts, and per view the 2D
@@ -463,10 +547,13 @@ def run(
     present = (scores > 0).any(-1)  # (T, V, N_in): the people associate_frames saw
     uncertainty = None
     if _is_temporal(cfg):  # whole tracks through the temporal lifter: it is the filter
-        tracks, uncertainty, views, ids, interpolated, index = _lift_people(people, rig, fps, cfg)
+        answer = _lift_people(people, rig, fps, cfg, joints)
+        tracks, uncertainty, views, ids, interpolated, index, skeleton = answer
         membership, excluded = view_records(people, index, present)
     else:
-        pts, nv, used = estimate(people, rig, cfg, progress=progress, used=True)
+        fn = _estimator(cfg, used=True, joints=joints)
+        skeleton = fn.skeleton or input_skeleton(keypoints.shape[-2], joints)
+        pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
         tracks, views, ids, index = _track(pts, nv, cfg)
         membership, excluded = view_records(people, index, present, nv, used)
         interpolated = np.zeros(tracks.shape[:-1], bool)
@@ -481,7 +568,7 @@ def run(
         scores=None,
         flags=flags.astype(np.uint8),
         num_views=np.where(ok, views, 0).astype(np.int32),
-        skeleton="coco17",
+        skeleton=skeleton,
         frames=np.arange(T) if frames is None else np.asarray(frames),
         fps=fps,
         person_ids=np.asarray(ids),

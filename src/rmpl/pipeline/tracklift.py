@@ -65,27 +65,38 @@ def lift_tracks(
     fps: float,
     max_gap: int = 20,
     up: np.ndarray | None = None,
+    joints: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lift every track with a temporal lifter.
 
     Args:
-        keypoints: (T, P, V, J, 2) from :func:`tracks_2d`; scores: (T, P, V, J).
+        keypoints: (T, P, V, J_2d, 2) from :func:`tracks_2d`; scores: (T, P, V, J_2d).
         rig: the V cameras. lifter: a :class:`~rmpl.inference_temporal.TemporalLifter`.
         fps: frames per second. max_gap: the longest absence bridged, frames.
         up: world up axis (3,), or None to estimate it from the rig.
+        joints: the 2D's joint set (None: the model's when J_2d matches, else COCO-17).
 
     Returns:
         points (T, P, J, 3) metres, radius (T, P, J) metres (the predicted 50% error radius,
-        :meth:`~rmpl.inference_temporal.TrackResult.radius`), views (T, P, J) int; NaN / 0
-        outside each track's pieces.
+        :meth:`~rmpl.inference_temporal.TrackResult.radius`), views (T, P, J) int (the views
+        with the joint's keypoint; 0 for a joint the 2D lacks); NaN / 0 outside each track's
+        pieces. J and its order are the model's (:attr:`lifter.skeleton
+        <rmpl.inference_temporal.TemporalLifter.skeleton>`).
     """
-    T, P, V, J, _ = keypoints.shape
+    from rmpl.skeleton import to_model_joints
+
+    T, P = keypoints.shape[:2]
+    J = lifter.num_joints
     points = np.full((T, P, J, 3), np.nan)
     radius = np.full((T, P, J), np.nan)
     present = (scores > 0).any((2, 3))  # (T, P)
     for p in range(P):
         for a, b in pieces(present[:, p], max_gap):
-            r = lifter.lift_track(keypoints[a:b, p], scores[a:b, p], rig, fps=fps, up=up)
+            r = lifter.lift_track(
+                keypoints[a:b, p], scores[a:b, p], rig, fps=fps, up=up, joints=joints
+            )
             points[a:b, p], radius[a:b, p] = r.points, r.radius(0.5)
+    if keypoints.shape[-2] != J or joints not in (None, lifter.skeleton.name):
+        scores = to_model_joints(keypoints, scores, lifter.skeleton, joints)[1]
     views = (scores > 0).sum(2)
     return points, radius, views
