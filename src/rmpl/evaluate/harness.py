@@ -1,7 +1,9 @@
 """Compare 3D methods on identical 2D input: triangulation, robust triangulation, RMPL.
 
 A method maps per-person multi-view keypoints ``(N, V, J, 2)`` + scores ``(N, V, J)`` and a
-rig to COCO-17 joints ``(N, J, 3)``. Every method of one run sees the same per-person 2D
+rig to COCO-17 joints ``(N, 17, 3)``, or HALPE-26 ``(N, 26, 3)`` (a lifter that outputs it:
+its first 17 joints are COCO-17, the joints scored, so every table stays comparable; its
+head top and neck give a third PCP, "own"). Every method of one run sees the same per-person 2D
 input: the 2D people are associated (or taken) once per view subset, perturbed once per
 condition (keypoint dropout, calibration noise), and then handed to every method.
 
@@ -23,7 +25,9 @@ Protocols (chosen per dataset, stated in every output header):
 Ground truth is mapped to COCO-17 by joint name (:func:`rmpl.data.base.coco17_by_name`)
 and only the joints it defines are scored (Shelf/Campus: the 12 limb joints; H36M: the
 limbs and the nose; Panoptic: all 17). PCP (Shelf, Campus) uses the Shelf-14 joints with
-the predicted neck and head top derived by :func:`rmpl.skeleton.convert`.
+the predicted neck and head top derived by :func:`rmpl.skeleton.convert`, by the
+literature's conversion, or (HALPE-26 methods) the method's own
+(:data:`rmpl.evaluate.scoring.PCP_CONVERSIONS`).
 
 Metrics (:mod:`rmpl.evaluate.scoring`) are computed per view subset (and calibration-noise
 repetition) and averaged in the tables (:mod:`rmpl.evaluate.tables`).
@@ -45,7 +49,7 @@ from rmpl.evaluate.evalset import MATCH_GATE, EvalSet, gt_coco, reprojection_che
 from rmpl.evaluate.methods import Method
 from rmpl.geometry import Rig
 from rmpl.io.poses import Poses3D
-from rmpl.skeleton import convert
+from rmpl.skeleton import COCO17, HALPE26, convert
 
 __all__ = [
     "EvalConfig",
@@ -154,7 +158,12 @@ class Evaluation:
             scored poses (one per frame and present person, all parts).
         native: the same poses in the dataset's joint set (for PCP), (n, J_gt, 3).
         person: (n,) person label per pose; clip: (n,) clip label per pose.
-        preds: (view label, condition index, method) -> list of (subset index, (n, 17, 3)).
+        preds: (view label, condition index, method) -> per subset entry, the COCO-17
+            predictions (n, 17, 3) (the first 17 joints of a HALPE-26 method).
+        extra: the same keys -> per subset entry, the HALPE-26 joints after COCO-17
+            (n, 9, 3): head top, neck, mid-hip, feet; all NaN for a COCO-17 method.
+        skeletons: method -> the joint set it output ("coco17", or "halpe26" when it gave
+            HALPE-26 anywhere).
     """
 
     evset: EvalSet
@@ -167,6 +176,8 @@ class Evaluation:
     person: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
     clip: np.ndarray = field(default_factory=lambda: np.zeros(0, str))
     preds: dict[tuple[str, int, str], list[np.ndarray]] = field(default_factory=dict)
+    extra: dict[tuple[str, int, str], list[np.ndarray]] = field(default_factory=dict)
+    skeletons: dict[str, str] = field(default_factory=dict)
     reprojection: tuple[float, float, int] = (float("nan"), float("nan"), 0)
     scored: str = ""  # how finished results were matched (evaluate_poses); "" = the protocol
 
@@ -175,19 +186,19 @@ def _per_person_input(data: MultiViewDataset, views: tuple[int, ...], protocol: 
     """The 2D people handed to the methods for one part and view subset.
 
     Returns:
-        keypoints (M, k, 17, 2), scores (M, k, 17), frame index (M,), ground-truth slot
-        (M,) (-1: to be matched).
+        keypoints (M, k, J, 2), scores (M, k, J), frame index (M,), ground-truth slot
+        (M,) (-1: to be matched); J the 2D's joints (COCO-17, or HALPE-26).
     """
     from rmpl.pipeline.association import associate
 
-    kp_all = data.keypoints[:, list(views)]  # (T, k, N, 17, 2)
+    kp_all = data.keypoints[:, list(views)]  # (T, k, N, J, 2)
     sc_all = data.scores[:, list(views)]
-    T, k, N = kp_all.shape[:3]
+    T, k, N, J = kp_all.shape[:4]
     if protocol == "given":
-        # (T, k, P, 17, 2) -> (T * P, k, 17, 2): one input per frame and person
+        # (T, k, P, J, 2) -> (T * P, k, J, 2): one input per frame and person
         P = data.num_people
-        kp = np.moveaxis(kp_all[:, :, :P], 2, 1).reshape(T * P, k, 17, 2)
-        sc = np.moveaxis(sc_all[:, :, :P], 2, 1).reshape(T * P, k, 17)
+        kp = np.moveaxis(kp_all[:, :, :P], 2, 1).reshape(T * P, k, J, 2)
+        sc = np.moveaxis(sc_all[:, :, :P], 2, 1).reshape(T * P, k, J)
         frame, slot = np.repeat(np.arange(T), P), np.tile(np.arange(P), T)
         seen = (sc > 0).any((-1, -2))
         return kp[seen], sc[seen], frame[seen], slot[seen]
@@ -208,8 +219,8 @@ def _per_person_input(data: MultiViewDataset, views: tuple[int, ...], protocol: 
             scs.append(found.scores)
             frames.append(np.full(len(found), t))
     if not kps:
-        empty = np.zeros((0, k, 17))
-        return np.zeros((0, k, 17, 2)), empty, np.zeros(0, int), np.zeros(0, int)
+        empty = np.zeros((0, k, J))
+        return np.zeros((0, k, J, 2)), empty, np.zeros(0, int), np.zeros(0, int)
     frame = np.concatenate(frames)
     return np.concatenate(kps), np.concatenate(scs), frame, np.full(len(frame), -1)
 
@@ -229,18 +240,20 @@ def _dropout(kp, sc, p: float, rng: np.random.Generator):
 
 
 def _assign(pred, frame, slot, gt_frames, joints, gate) -> np.ndarray:
-    """Place predictions (M, 17, 3) onto ground-truth slots: (T, P, 17, 3), NaN if unmatched."""
+    """Place predictions (M, J, 3) onto ground-truth slots: (T, P, J, 3), NaN if unmatched.
+
+    Matching uses the COCO-17 ``joints`` (the first 17 of HALPE-26 predictions)."""
     from rmpl.pipeline.association import match_poses
 
     T, P = gt_frames.shape[:2]
-    out = np.full((T, P, 17, 3), np.nan)
+    out = np.full((T, P, pred.shape[-2], 3), np.nan)
     given = slot >= 0
     out[frame[given], slot[given]] = pred[given]
     todo = np.flatnonzero(~given)
     if todo.size:
         for t in np.unique(frame[todo]):
             rows = todo[frame[todo] == t]
-            match = match_poses(pred[rows], gt_frames[t], gate, joints)
+            match = match_poses(pred[rows, :17], gt_frames[t], gate, joints)
             ok = match >= 0
             out[t, ok] = pred[rows[match[ok]]]
     return out
@@ -308,8 +321,24 @@ class _Run:
     bar: object  # tqdm progress bar
 
 
+def _output_joints(name: str, pred: np.ndarray) -> np.ndarray:
+    """A method's predictions (M, J, 3) as HALPE-26 (M, 26, 3): COCO-17 padded with NaN.
+
+    Raises:
+        ValueError: predictions that are neither COCO-17 nor HALPE-26.
+    """
+    J = pred.shape[-2]
+    if J == HALPE26.num_joints:
+        return pred
+    if J != COCO17.num_joints:
+        raise ValueError(f"method {name} returned {J} joints: expected COCO-17 or HALPE-26")
+    pad = np.full((*pred.shape[:-2], HALPE26.num_joints - J, 3), np.nan)
+    return np.concatenate([pred, pad], axis=-2)
+
+
 def _run_condition(run: _Run, views, si: int, inputs, ci: int, p: float, calib, r: int):
-    """Every method on one view subset, condition and repetition: name -> (n, 17, 3)."""
+    """Every method on one view subset, condition and repetition: name -> (n, 26, 3)
+    HALPE-26, NaN after the first 17 joints for a COCO-17 method."""
     evset, cfg = run.ev.evset, run.ev.config
     per_method: dict[str, list] = {m: [] for m in run.methods}
     for i, (part, inp) in enumerate(zip(evset.parts, inputs, strict=True)):
@@ -325,7 +354,9 @@ def _run_condition(run: _Run, views, si: int, inputs, ci: int, p: float, calib, 
             else:
                 pred = method(kp, sc, rig) if len(kp) else np.zeros((0, 17, 3))
                 placed = _assign(pred, frame, slot, run.gts[i], run.ev.joints, cfg.match_gate)
-            per_method[name].append(placed[run.present[i]])
+            if pred.shape[-2] == HALPE26.num_joints:
+                run.ev.skeletons[name] = HALPE26.name
+            per_method[name].append(_output_joints(name, placed[run.present[i]]))
         run.bar.update()
     return {name: np.concatenate(per_method[name]) for name in run.methods}
 
@@ -344,7 +375,8 @@ def _run_subset(run: _Run, label: str, si: int, views: tuple[int, ...]) -> None:
         for r in range(cfg.calib_reps if calib is not None else 1):
             preds = _run_condition(run, views, si, inputs, ci, p, calib, r)
             for name, pred in preds.items():
-                run.ev.preds[label, ci, name].append(pred)
+                run.ev.preds[label, ci, name].append(pred[:, :17])
+                run.ev.extra[label, ci, name].append(pred[:, 17:])
 
 
 def evaluate(
@@ -375,9 +407,11 @@ def evaluate(
     total = sum(len(s) for s in view_sets.values()) * len(evset.parts) * (1 + runs)
     bar = tqdm(total=total, desc="evaluate", unit="step", disable=not progress)
     run = _Run(ev, methods, gts, present, _noisy_rigs(evset, cfg), bar)
+    ev.skeletons = dict.fromkeys(methods, COCO17.name)
     for label, subsets in view_sets.items():
         for (ci, _), name in itertools.product(enumerate(conditions), methods):
             ev.preds[label, ci, name] = []
+            ev.extra[label, ci, name] = []
         for si, views in enumerate(subsets):
             _run_subset(run, label, si, views)
     bar.close()
@@ -388,15 +422,16 @@ def _result_people(poses: Poses3D, part: MultiViewDataset, name: str):
     """The people of a finished result in the dataset's frames.
 
     Returns:
-        Poses (M, 17, 3) COCO-17 and the dataset frame index of each (M,).
+        Poses (M, J, 3), COCO-17 or HALPE-26 (kept: its head top and neck give the "own"
+        PCP), and the dataset frame index of each (M,).
 
     Raises:
         InputError: no result frame is a frame of the dataset.
     """
     row = {int(f): t for t, f in enumerate(part.frames)}
     pts = poses.points
-    if poses.skeleton != "coco17":
-        pts = convert(pts, poses.skeleton, "coco17")
+    if poses.skeleton not in (COCO17.name, HALPE26.name):
+        pts = convert(pts, poses.skeleton, COCO17.name)
     frames = poses.frames if poses.frames is not None else np.arange(len(pts))
     pred, frame = [], []
     for i, f in enumerate(np.asarray(frames).tolist()):
@@ -448,7 +483,10 @@ def evaluate_poses(
     for name, poses in results.items():
         pred, frame = _result_people(poses, part, name)
         placed = _assign(pred, frame, np.full(len(frame), -1), gts[0], ev.joints, cfg.match_gate)
-        ev.preds["all", 0, name] = [placed[present[0]]]
+        placed = _output_joints(name, placed[present[0]])
+        ev.skeletons[name] = HALPE26.name if pred.shape[-2] == 26 else COCO17.name
+        ev.preds["all", 0, name] = [placed[:, :17]]
+        ev.extra["all", 0, name] = [placed[:, 17:]]
     return ev
 
 

@@ -122,21 +122,22 @@ def _subset_errors(kp, sc, rig: Rig, methods, h: int, S: list[int], min_score: f
         name -> (pixel errors, millimetre errors), flat over the confident detections of
         ``h`` (NaN where the method gave no estimate); {} when nothing is scored.
     """
-    J = sc.shape[-1]
-    ref = (sc[:, h] > 0) & (sc[:, h] >= min_score)  # (N, J)
+    J = min(sc.shape[-1], 17)  # scored: COCO-17 (the first 17 of HALPE-26 2D and outputs)
+    ref = (sc[:, h, :J] > 0) & (sc[:, h, :J] >= min_score)  # (N, J)
     keep = ref.any(-1) & (sc[:, S] > 0).any((-1, -2))
     if not keep.any():
         return {}
     sub_kp, sub_sc, sub_rig = kp[keep][:, S], sc[keep][:, S], rig[S]
-    target, ref = kp[keep, h], ref[keep]
+    target, ref = kp[keep, h, :J], ref[keep]
     cam = rig[h]
     focal = 0.5 * (cam.K[0, 0] + cam.K[1, 1])
     preds = {m: np.asarray(fn(sub_kp, sub_sc, sub_rig), float) for m, fn in methods.items()}
     n = int(keep.sum())
     out = {}
     for m, X in preds.items():
-        if X.shape != (n, J, 3):
-            raise ValueError(f"method {m} returned {X.shape}, expected {(n, J, 3)}")
+        if X.ndim != 3 or X.shape[0] != n or X.shape[1] < J or X.shape[2] != 3:
+            raise ValueError(f"method {m} returned {X.shape}, expected {(n, J, 3)} or more joints")
+        X = X[:, :J]
         ok = np.isfinite(X).all(-1)
         Xs = np.where(ok[..., None], X, 0.0)
         uv = cam.project(Xs)

@@ -1,14 +1,20 @@
 """The 3D methods compared: name -> ``fn(keypoints, scores, rig) -> points``.
 
 A method maps per-person multi-view keypoints ``(N, V, J, 2)`` pixels + scores ``(N, V, J)``
-and a rig of ``V`` cameras to COCO-17 joints ``(N, J, 3)`` metres, NaN where it gives no
-estimate. A new method plugs in as one entry of :data:`METHODS`.
+and a rig of ``V`` cameras to joints ``(N, J', 3)`` metres, NaN where it gives no estimate:
+COCO-17 (``J' = 17``) or HALPE-26 (``J' = 26``, a lifter that outputs it; its first 17
+joints are COCO-17, the scored ones). A new method plugs in as one entry of :data:`METHODS`.
+
+The 2D is COCO-17 or HALPE-26 (:data:`INPUT_SETS`, by joint count). The triangulation
+baselines use its COCO-17 joints (the first 17); a lifter takes the joints its model knows
+(:func:`fit_input`).
 
 ``rmpl+floor[:CUES]`` (:class:`MonocularMethod`) is the single-view lifting of
 :mod:`rmpl.pipeline.monocular`: the shipped lifter, then depth from the floor, the body-size
 prior and (with "time") whole tracks; CUES is any of floor, size, time joined by + (default
 all three). With two or more views it is exactly ``rmpl``. Its floor is set by ``rmpl
-evaluate --floor`` (:attr:`MonocularMethod.floor`).
+evaluate --floor`` (:attr:`MonocularMethod.floor`). With one view it is COCO-17 whatever
+the model outputs: the depth cues of :mod:`rmpl.pipeline.monocular` place COCO-17 poses.
 """
 
 from __future__ import annotations
@@ -19,11 +25,47 @@ import numpy as np
 
 from rmpl.errors import InputError
 from rmpl.geometry import Rig, triangulate, triangulate_robust
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import COCO17, HALPE26
 
-__all__ = ["METHODS", "Method", "MonocularMethod", "make_method", "parse_methods"]
+__all__ = [
+    "INPUT_SETS",
+    "METHODS",
+    "Method",
+    "MonocularMethod",
+    "fit_input",
+    "make_method",
+    "parse_methods",
+]
 
 Method = Callable[[np.ndarray, np.ndarray, Rig], np.ndarray]
+
+#: The 2D joint sets the methods take, by joint count; both start with COCO-17.
+INPUT_SETS = {COCO17.num_joints: COCO17.name, HALPE26.num_joints: HALPE26.name}
+
+
+def fit_input(kp: np.ndarray, sc: np.ndarray, num_joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """2D (*, J, 2) + scores (*, J) for a model of ``num_joints`` outputs: HALPE-26 2D for a
+    COCO-17 model becomes its first 17 joints; otherwise the 2D is unchanged (a HALPE-26
+    model embeds COCO-17 2D itself, :func:`rmpl.skeleton.to_model_joints`).
+
+    Raises:
+        ValueError: 2D whose joint count is not one of :data:`INPUT_SETS`.
+    """
+    J = kp.shape[-2]
+    if J not in INPUT_SETS:
+        raise ValueError(f"2D with {J} joints: expected one of {sorted(INPUT_SETS)}")
+    if J > num_joints == COCO17.num_joints:
+        return kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints]
+    return kp, sc
+
+
+def _coco_input(fn: Method) -> Method:
+    """A triangulation baseline on the COCO-17 joints (the first 17) of the 2D."""
+
+    def run(kp: np.ndarray, sc: np.ndarray, rig: Rig) -> np.ndarray:
+        return fn(kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints], rig)
+
+    return run
 
 
 def _nan_if_too_few_views(fn: Method) -> Method:
@@ -43,9 +85,10 @@ def _rmpl(spec: str) -> Method:
     lifter = Lifter.from_pretrained(spec or "default")
 
     def run(kp: np.ndarray, sc: np.ndarray, rig: Rig) -> np.ndarray:
+        kp, sc = fit_input(kp, sc, lifter.num_joints)
         ok = (sc > 0) & np.isfinite(kp).all(-1)
         if not ok.any():  # nothing to lift; the lifter would refuse
-            return np.full((*kp.shape[:-3], kp.shape[-2], 3), np.nan)
+            return np.full((*kp.shape[:-3], lifter.num_joints, 3), np.nan)
         return lifter.lift(kp, sc, rig).points
 
     return run
@@ -59,20 +102,27 @@ class MonocularMethod:
     (:func:`rmpl.pipeline.monocular.lift_stretch`). Called per frame (``fn(kp, sc, rig)``,
     as the synthetic scenes do), it uses the floor and size cues only.
 
+    With one view the poses are COCO-17 (the first 17 joints of a HALPE-26 model: the depth
+    cues place COCO-17 poses); with more, the model's own joints, as ``rmpl``.
+
+    Args:
+        cues: the depth cues, e.g. "floor+size" ("" = all).
+        model: the per-frame model, a shipped name or a checkpoint directory.
+
     Attributes:
         floor: the :class:`rmpl.geometry.floor.Floor`, or None: the calibration convention
             of the rig (:func:`rmpl.geometry.floor.convention_floor`) if it has one.
         floor_rule: "convention" (None means the rig's convention) or "none" (no floor).
     """
 
-    def __init__(self, cues: str = "") -> None:
+    def __init__(self, cues: str = "", model: str = "default") -> None:
         from rmpl.inference import Lifter
         from rmpl.pipeline.monocular import MonocularConfig
 
         self.config = MonocularConfig.from_cues(cues) if cues else MonocularConfig()
         self.floor = None
         self.floor_rule = "convention"
-        self._lifter = Lifter.from_pretrained("default")
+        self._lifter = Lifter.from_pretrained(model)
 
     @property
     def sequence(self) -> bool:
@@ -88,13 +138,19 @@ class MonocularMethod:
         return convention_floor(rig.R, rig.centers)
 
     def _lift_fn(self, up):
-        lifter = self._lifter
+        """The lifter for :mod:`rmpl.pipeline.monocular`: COCO-17 2D in, COCO-17 poses out."""
+        lifter, J = self._lifter, COCO17.num_joints
 
         def fn(kp, sc, rig):
-            r = lifter.lift(kp, sc, rig, up=up)
-            return r.points, r.num_views
+            r = lifter.lift(kp, sc, rig, up=up, joints=COCO17.name)
+            return r.points[..., :J, :], r.num_views[..., :J]
 
         return fn
+
+    def _multi_view(self, kp, sc, rig) -> np.ndarray:
+        """More than one view: the plain lifter, the model's own joints."""
+        kp, sc = fit_input(kp, sc, self._lifter.num_joints)
+        return self._lifter.lift(kp, sc, rig).points
 
     def __call__(self, kp, sc, *rest):
         """``(kp, sc, rig)`` per frame, or the sequence signature of
@@ -105,11 +161,12 @@ class MonocularMethod:
 
         if len(rest) == 1:  # per frame
             rig = rest[0]
-            empty = np.full((*kp.shape[:-3], kp.shape[-2], 3), np.nan)
             if not ((sc > 0) & np.isfinite(kp).all(-1)).any():
-                return empty
+                J = self._lifter.num_joints if len(rig) > 1 else COCO17.num_joints
+                return np.full((*kp.shape[:-3], J, 3), np.nan)
             if len(rig) > 1:
-                return self._lifter.lift(kp, sc, rig).points
+                return self._multi_view(kp, sc, rig)
+            kp, sc = kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints]
             floor = self._floor(rig)
             up = None if floor is None else floor.n
             cfg = replace(self.config, cues=tuple(c for c in self.config.cues if c != "time"))
@@ -119,9 +176,10 @@ class MonocularMethod:
             return res.points[:, 0]
         frame, num_frames, rig, fps = rest[:4]
         if len(rig) > 1:  # every view: the plain lifter, per frame
-            return self._lifter.lift(kp, sc, rig).points, frame
+            return self._multi_view(kp, sc, rig), frame
         from rmpl.evaluate.sequences import stretches
 
+        kp, sc = kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints]
         floor = self._floor(rig)
         up = None if floor is None else floor.n
         preds, at = [np.zeros((0, kp.shape[-2], 3))], [np.zeros(0, int)]
@@ -139,11 +197,13 @@ class MonocularMethod:
 
 
 METHODS: dict[str, Callable[[str], Method]] = {
-    "triangulate": lambda _: _nan_if_too_few_views(
-        lambda kp, sc, rig: triangulate(kp, sc, rig).points
+    "triangulate": lambda _: _coco_input(
+        _nan_if_too_few_views(lambda kp, sc, rig: triangulate(kp, sc, rig).points)
     ),
-    "robust": lambda _: _nan_if_too_few_views(
-        lambda kp, sc, rig: triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs).points
+    "robust": lambda _: _coco_input(
+        _nan_if_too_few_views(
+            lambda kp, sc, rig: triangulate_robust(kp, sc, rig, swap_pairs=COCO17.flip_pairs).points
+        )
     ),
     "rmpl": _rmpl,
     "rmpl+floor": MonocularMethod,

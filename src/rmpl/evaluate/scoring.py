@@ -1,7 +1,8 @@
 """Scores of 3D estimates against ground truth: MPJPE, KP*, PA-MPJPE, PCK, coverage, PCP.
 
 Every function takes predictions and ground truth as COCO-17 arrays ``(n, 17, 3)`` in
-metres (NaN: not estimated / not annotated) and returns millimetres or percent.
+metres (NaN: not estimated / not annotated) and returns millimetres or percent; PCP with
+the "own" conversion takes HALPE-26 predictions ``(n, 26, 3)``.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rmpl.metrics import pcp_parts, procrustes_align
-from rmpl.skeleton import COCO17, KP_STAR, SHELF14, convert
+from rmpl.skeleton import COCO17, HALPE26, KP_STAR, SHELF14, convert
 
 if TYPE_CHECKING:
     from rmpl.evaluate.harness import Evaluation
@@ -34,6 +35,7 @@ __all__ = [
     "root_metrics",
     "shelf14_published",
     "shelf15",
+    "shelf15_own",
     "shelf15_published",
 ]
 
@@ -124,11 +126,29 @@ def shelf15_published(coco: np.ndarray) -> np.ndarray:
     return _with_mid_hip(shelf14_published(coco))
 
 
-#: How the predicted COCO-17 joints become Shelf-14 + mid-hip for PCP: "derived" (the
-#: neck and head top of :func:`rmpl.skeleton.convert`) or "published" (the literature's).
+def shelf15_own(halpe: np.ndarray) -> np.ndarray:
+    """HALPE-26 joints (*, 26, 3) to Shelf-14 + mid-hip (*, 15, 3) with the model's own
+    neck and head top (:func:`rmpl.skeleton.convert`, halpe26 -> shelf14); the mid-hip is
+    the mean of the hips, as for the ground truth.
+
+    >>> x = np.zeros((26, 3))
+    >>> x[HALPE26.index("head_top")], x[HALPE26.index("neck")] = [0, 0, 1.8], [0, 0, 1.5]
+    >>> shelf15_own(x)[[12, 13], 2].tolist()  # neck, head top
+    [1.5, 1.8]
+    """
+    halpe = np.asarray(halpe, float)
+    if halpe.shape[-2:] != (HALPE26.num_joints, 3):
+        raise ValueError(f"halpe must have shape (*, 26, 3), got {halpe.shape}")
+    return _with_mid_hip(convert(halpe, HALPE26, SHELF14))
+
+
+#: How the predicted joints become Shelf-14 + mid-hip for PCP: from COCO-17, "derived" (the
+#: neck and head top of :func:`rmpl.skeleton.convert`) or "published" (the literature's);
+#: from HALPE-26, "own" (the model's own neck and head top).
 PCP_CONVERSIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "derived": shelf15,
     "published": shelf15_published,
+    "own": shelf15_own,
 }
 
 
@@ -224,7 +244,7 @@ def pcp_by_actor(
     """PCP (%) per actor label over poses, Shelf-14 parts + torso (to the mid-hip).
 
     Args:
-        pred: (n, 17, 3) COCO-17 estimates, metres.
+        pred: (n, 17, 3) COCO-17 estimates, metres; (n, 26, 3) HALPE-26 for "own".
         native: (n, 14, 3) Shelf-14 ground truth, metres.
         person: (n,) actor label per pose.
         conversion: a key of :data:`PCP_CONVERSIONS` (the predicted neck and head top).

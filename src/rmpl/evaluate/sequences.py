@@ -13,6 +13,8 @@ and its settings), then
 
 It returns one prediction per track and frame, which the harness matches to the ground
 truth frame by frame like any other prediction, so the tables and CSV columns are the same.
+The predictions have the joints of the per-frame method or temporal model (COCO-17 or
+HALPE-26, :mod:`rmpl.evaluate.methods`); with nothing to estimate, none (0, 17, 3).
 """
 
 from __future__ import annotations
@@ -91,21 +93,26 @@ class SequenceMethod:
         if self.temporal is None:
             self._frame = make_method(self.base)
         else:  # track with the temporal model's own per-frame model, as rmpl run does
+            from rmpl.evaluate.methods import fit_input
             from rmpl.inference import Lifter
 
             lifter = Lifter(self.temporal.model.frame_model)
-            self._frame = lambda kp, sc, rig: lifter.lift(kp, sc, rig).points
+            self._frame = lambda kp, sc, rig: (
+                lifter.lift(*fit_input(kp, sc, lifter.num_joints), rig).points
+            )
 
     def __call__(self, kp, sc, frame, num_frames: int, rig: Rig, fps: float,
                  frame_numbers=None, clips=None):  # fmt: skip
-        J = kp.shape[-2]
-        preds, at = [np.zeros((0, J, 3))], [np.zeros(0, int)]
+        preds, at = [], [np.zeros(0, int)]
         for a, b, step in stretches(num_frames, frame_numbers, clips):
             rows = (frame >= a) & (frame < b)
             if rows.any():
                 p, t = self._stretch(kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step)
-                preds.append(p)
-                at.append(t + a)
+                if len(p):
+                    preds.append(p)
+                    at.append(t + a)
+        if not preds:
+            return np.zeros((0, 17, 3)), np.zeros(0, int)
         return np.concatenate(preds), np.concatenate(at)
 
     def _stretch(self, kp, sc, frame, num_frames: int, rig: Rig, fps: float):
@@ -113,8 +120,8 @@ class SequenceMethod:
         from rmpl.pipeline.association import Association
         from rmpl.pipeline.runner import RunConfig, smooth, track_index
 
-        J = kp.shape[-2]
-        pts = self._frame(kp, sc, rig)  # (M, J, 3)
+        pts = self._frame(kp, sc, rig)  # (M, J, 3), the method's joints
+        J = pts.shape[-2]
         cfg = RunConfig()
         rows = [np.flatnonzero(frame == t) for t in range(num_frames)]
         per_frame = [pts[r] for r in rows]
@@ -127,8 +134,10 @@ class SequenceMethod:
                 tracks[t, p] = per_frame[t][index[t, p]]
             out, _ = smooth(tracks, fps, RunConfig(cutoff=min(cfg.cutoff, 0.45 * fps)))
         else:
+            from rmpl.evaluate.methods import fit_input
             from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
 
+            kp, sc = fit_input(kp, sc, self.temporal.num_joints)
             people = [Association(kp[r], sc[r], np.zeros((len(r), kp.shape[1]), int)) for r in rows]
             k2, s2 = tracks_2d(people, index)
             out, _, _ = lift_tracks(k2, s2, rig, self.temporal, fps, cfg.max_gap)

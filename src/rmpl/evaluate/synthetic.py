@@ -32,14 +32,15 @@ ALL_JOINTS = list(range(17))
 
 
 def _per_scene(method, keypoints, scores, K, R, t) -> np.ndarray:
-    """Run a rig-level method scene by scene (each scene has its own cameras): (B, J, 3)."""
-    B, V, J = scores.shape
-    out = np.full((B, J, 3), np.nan)
+    """Run a rig-level method scene by scene (each scene has its own cameras): (B, 17, 3)
+    COCO-17 (the first 17 joints of a HALPE-26 method), the joints scored."""
+    B, V = scores.shape[:2]
+    out = np.full((B, len(ALL_JOINTS), 3), np.nan)
     for i in range(B):
         if not (scores[i] > 0).any():
             continue
         rig = Rig(tuple(Camera(K[i, v], R[i, v], t[i, v], name=str(v)) for v in range(V)))
-        out[i] = method(keypoints[i][None], scores[i][None], rig)[0]
+        out[i] = method(keypoints[i][None], scores[i][None], rig)[0][ALL_JOINTS]
     return out
 
 
@@ -148,7 +149,7 @@ def _run_condition(poses, shards, methods, samples, seed, ji, v, p, calib, reps)
         R, t = batch.R, batch.t
         if calib is not None:
             R, t = perturb_extrinsics(R, t, calib[0], calib[1], rng)
-        target = batch.target.astype(float)
+        target = batch.target[:, ALL_JOINTS].astype(float)  # COCO-17, the scored joints
         for name, method in methods.items():
             pred = _per_scene(method, kp, sc, batch.K, R, t)
             results[name].append((pred, target))
@@ -206,7 +207,7 @@ def evaluate_sphere(
             np.broadcast_to(wh, (B, 2, 2)),
             np.random.default_rng([seed, 61]),  # the same noise draws at every point
         )
-        preds = {name: method(kp, sc, rig) for name, method in methods.items()}
+        preds = {name: method(kp, sc, rig)[..., ALL_JOINTS, :] for name, method in methods.items()}
         common = _common(preds)
         for name, pred in preds.items():
             row = {"height": float(h), "angle": float(a), "method": name}

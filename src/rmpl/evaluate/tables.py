@@ -30,7 +30,7 @@ from rmpl.evaluate.scoring import (
     root_metrics,
 )
 from rmpl.io.atomic import atomic_path
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import COCO17, HALPE26
 
 __all__ = [
     "COLUMN_TITLES",
@@ -66,16 +66,40 @@ def _common_mpjpe(ev: Evaluation, label: str, ci: int, entries: list[np.ndarray]
 
 #: Column-name prefix of the PCP of each conversion (see
 #: :data:`~rmpl.evaluate.scoring.PCP_CONVERSIONS`).
-PCP_PREFIX = {"derived": "pcp_", "published": "pcp_lit_"}
+PCP_PREFIX = {"derived": "pcp_", "published": "pcp_lit_", "own": "pcp_own_"}
+
+
+def _has_own(ev: Evaluation) -> bool:
+    """Whether a method output HALPE-26: then the tables have the "own" PCP columns."""
+    return HALPE26.name in ev.skeletons.values()
+
+
+def _conversions(ev: Evaluation) -> dict[str, str]:
+    """The PCP conversions of an evaluation -> their column prefixes ("own" only with a
+    HALPE-26 method, so COCO-17 tables keep their columns)."""
+    return {c: pre for c, pre in PCP_PREFIX.items() if c != "own" or _has_own(ev)}
+
+
+def _pcp_entries(ev: Evaluation, label: str, ci: int, method: str, conversion: str):
+    """What PCP with ``conversion`` scores, per subset entry: COCO-17 (n, 17, 3), or for
+    "own" HALPE-26 (n, 26, 3); None when the method has no own head points."""
+    entries = ev.preds[label, ci, method]
+    if conversion != "own":
+        return entries
+    if ev.skeletons.get(method) != HALPE26.name:
+        return None
+    extra = ev.extra[label, ci, method]
+    return [np.concatenate([p, x], axis=-2) for p, x in zip(entries, extra, strict=True)]
 
 
 def _pcp_cells(
-    ev: Evaluation, entries: list[np.ndarray], conversion: str = "derived"
+    ev: Evaluation, entries: list[np.ndarray] | None, conversion: str = "derived"
 ) -> dict[str, float]:
-    """pcp_actor1.. and pcp_mean (%), averaged over the subsets (prefix pcp_lit_: published)."""
+    """pcp_actor1.. and pcp_mean (%), averaged over the subsets (prefix pcp_lit_: published,
+    pcp_own_: own); NaN when ``entries`` is None."""
     pre = PCP_PREFIX[conversion]
     actors = pcp_actors(ev)
-    pcps = [pcp_by_actor(pred, ev.native, ev.person, conversion) for pred in entries]
+    pcps = [pcp_by_actor(pred, ev.native, ev.person, conversion) for pred in entries or []]
     row = {
         f"{pre}{a.replace(' ', '')}": mean_finite(x.get(a, np.nan) for x in pcps) for a in actors
     }
@@ -98,7 +122,8 @@ def results_rows(ev: Evaluation) -> list[dict]:
     The column ``2d_source`` names the methods' 2D input ("detections", "annotations",
     "projection" or "keypoints"; "none" for finished results). On Shelf and Campus the
     PCP with the published conversion (``pcp_lit_actor1``, ..., ``pcp_lit_mean``) follows
-    it, at the end.
+    it, at the end, then, when a method outputs HALPE-26, the PCP with the methods' own
+    neck and head top (``pcp_own_*``, NaN for COCO-17 methods).
     """
     two_d = "none" if ev.scored else ev.evset.two_d
     rows = []
@@ -127,6 +152,8 @@ def results_rows(ev: Evaluation) -> list[dict]:
                 row["2d_source"] = two_d
                 if ev.evset.pcp:
                     row |= _pcp_cells(ev, entries, "published")
+                    if _has_own(ev):
+                        row |= _pcp_cells(ev, _pcp_entries(ev, label, ci, m, "own"), "own")
                 rows.append(row)
     return rows
 
@@ -157,20 +184,24 @@ def per_joint_rows(ev: Evaluation) -> list[dict]:
 
 
 def _person_pcp_cells(
-    ev: Evaluation, entries: list[np.ndarray], sel: np.ndarray, person: str
+    ev: Evaluation, key: tuple[str, int, str], sel: np.ndarray, person: str
 ) -> dict[str, float]:
-    """PCP of one person with the published conversion, then per part with both (%).
+    """PCP of one person with the published (and own) conversion, then per part with each.
 
-    Keys: ``pcp_lit``, then ``pcp_<part>`` and ``pcp_lit_<part>`` for the parts of
-    :data:`~rmpl.evaluate.scoring.PCP_PART_NAMES`; averaged over the subsets.
+    Keys: ``pcp_lit`` (and ``pcp_own``), then ``pcp_<part>``, ``pcp_lit_<part>`` (and
+    ``pcp_own_<part>``) for the parts of :data:`~rmpl.evaluate.scoring.PCP_PART_NAMES`;
+    averaged over the subsets of view setting, condition and method ``key``. The own
+    columns exist when a method outputs HALPE-26; NaN for COCO-17 methods.
     """
     native, labels = ev.native[sel], ev.person[sel]
-    out = {
-        "pcp_lit": mean_finite(
-            pcp_by_actor(x[sel], native, labels, "published").get(person, np.nan) for x in entries
+    out = {}
+    for conversion in ("published", "own")[: 1 + _has_own(ev)]:
+        entries = _pcp_entries(ev, *key, conversion) or []
+        out[PCP_PREFIX[conversion].rstrip("_")] = mean_finite(
+            pcp_by_actor(x[sel], native, labels, conversion).get(person, np.nan) for x in entries
         )
-    }
-    for conversion, pre in PCP_PREFIX.items():
+    for conversion, pre in _conversions(ev).items():
+        entries = _pcp_entries(ev, *key, conversion) or []
         per = [pcp_parts_by_actor(x[sel], native, labels, conversion)[person] for x in entries]
         out |= {f"{pre}{part}": mean_finite(r[part] for r in per) for part in PCP_PART_NAMES}
     return out
@@ -180,7 +211,7 @@ def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
     """Metrics per person ("person") or clip ("clip"), view setting, condition and method.
 
     On Shelf and Campus a person's row ends with :func:`_person_pcp_cells` (the PCP with
-    the published conversion and the PCP per part).
+    the published (and own) conversion and the PCP per part).
     """
     groups = ev.person if by == "person" else ev.clip
     rows = []
@@ -208,7 +239,7 @@ def per_group_rows(ev: Evaluation, by: str) -> list[dict]:
                         )
                     row["dropout"], row["calib_noise"] = condition_label(p, calib)
                     if ev.evset.pcp and by == "person":
-                        row |= _person_pcp_cells(ev, entries, sel, str(gname))
+                        row |= _person_pcp_cells(ev, (label, ci, m), sel, str(gname))
                     rows.append(row)
     return rows
 
@@ -248,6 +279,8 @@ COLUMN_TITLES = {
     "pcp": "PCP (%)",
     "pcp_lit": "PCP published (%)",
     "pcp_lit_mean": "PCP mean, published (%)",
+    "pcp_own": "PCP own head (%)",
+    "pcp_own_mean": "PCP mean, own head (%)",
     "conversion": "neck, head top",
     "head": "head",
     "torso": "torso",
@@ -270,6 +303,8 @@ def _title(column: str) -> str:
         return COLUMN_TITLES[column]
     if column.startswith("pcp_lit_"):
         return f"PCP {column[8:].replace('actor', 'actor ')}, published (%)"
+    if column.startswith("pcp_own_"):
+        return f"PCP {column[8:].replace('actor', 'actor ')}, own head (%)"
     if column.startswith("pcp_"):
         return f"PCP {column[4:].replace('actor', 'actor ')} (%)"
     return column
@@ -293,8 +328,8 @@ def markdown_table(rows: list[dict], columns: list[str], pck_mm: float = 150) ->
     return "\n".join(text) + "\n"
 
 
-def _pcp_header_lines(es: EvalSet) -> list[str]:
-    """How PCP is scored: the convention, both neck and head-top conversions, missing ears."""
+def _pcp_header_lines(es: EvalSet, own: bool = False) -> list[str]:
+    """How PCP is scored: the convention, the neck and head-top conversions, missing ears."""
     lines = [
         "- PCP: Shelf/Campus convention (a part is correct when the mean of its end-point "
         "errors is at most half its length), ten parts (head, arms, legs, torso to the "
@@ -305,6 +340,12 @@ def _pcp_header_lines(es: EvalSet) -> list[str]:
         "head top = 0.75 (ms + (n - ms) * [0.75, 0.75, 1.5]) + 0.25 (2 ec - hb), "
         "neck = 0.75 (ms + 0.5 (n - ms)) + 0.25 hb",
     ]
+    if own:
+        lines.append(
+            "- PCP, own head (pcp_own_*): the neck and head top the method itself outputs "
+            "(HALPE-26 neck and head top, rmpl.skeleton halpe26 -> shelf14), the limbs and "
+            "the mid-hip (mean of the hips) as above; — for methods that output COCO-17"
+        )
     ears = [COCO17.index("left_ear"), COCO17.index("right_ear")]
     if not any((p.scores[..., ears] > 0).any() for p in es.parts):
         lines.append(
@@ -330,7 +371,7 @@ def header_lines(ev: Evaluation) -> list[str]:
         "over the view subsets of a setting",
     ]
     if es.pcp:
-        lines += _pcp_header_lines(es)
+        lines += _pcp_header_lines(es, _has_own(ev))
     med, p90, n = ev.reprojection
     if n:
         lines.append(
@@ -447,6 +488,8 @@ def _results_columns(ev: Evaluation, rows: list[dict]) -> list[str]:
     if ev.evset.pcp:
         cols += [k for k in rows[0] if k.startswith("pcp_actor")] + ["pcp_mean"]
         cols += [k for k in rows[0] if k.startswith("pcp_lit_actor")] + ["pcp_lit_mean"]
+        if _has_own(ev):
+            cols += [k for k in rows[0] if k.startswith("pcp_own_actor")] + ["pcp_own_mean"]
     if len(cfg.dropout) > 1:
         cols.insert(2, "dropout")
     if cfg.calib_noise is not None:
@@ -460,7 +503,7 @@ def _group_section(ev: Evaluation, by: str, groups: list[dict]) -> list[str]:
     clean = [r for r in groups if r["dropout"] == cfg.dropout[0] and r["calib_noise"] == "none"]
     gcols = ["views", "method", by, "poses", "mpjpe", "kpstar", "pa_mpjpe", "pck", "coverage"]
     if ev.evset.pcp and by == "person":
-        gcols += ["pcp", "pcp_lit"]
+        gcols += ["pcp", "pcp_lit"] + (["pcp_own"] if _has_own(ev) else [])
     title = (
         f"Per {'action/clip' if by == 'clip' else 'person'}"
         f" (dropout {cfg.dropout[0]:g}, no calibration noise):"
@@ -475,17 +518,22 @@ def _clean(ev: Evaluation, rows: list[dict]) -> list[dict]:
 
 
 def _pcp_part_section(ev: Evaluation, groups: list[dict]) -> list[str]:
-    """The PCP per part and person of the clean condition, both conversions, with its title."""
+    """The PCP per part and person of the clean condition, each conversion (own: HALPE-26
+    methods only), with its title."""
     rows = []
     for r in _clean(ev, groups):
-        for conversion, pre in PCP_PREFIX.items():
+        for conversion, pre in _conversions(ev).items():
+            if conversion == "own" and ev.skeletons.get(r["method"]) != HALPE26.name:
+                continue
             row = {k: r[k] for k in ("views", "method", "person")} | {"conversion": conversion}
             row |= {part: r[pre + part] for part in PCP_PART_NAMES}
             rows.append(row | {"pcp": r[pre.rstrip("_")]})
     cols = ["views", "method", "person", "conversion", *PCP_PART_NAMES, "pcp"]
     title = (
         f"PCP per part (%, dropout {ev.config.dropout[0]:g}, no calibration noise); neck and "
-        "head top derived (rmpl.skeleton) or published (coco2shelf3D):"
+        "head top derived (rmpl.skeleton) or published (coco2shelf3D)"
+        + (", or the method's own (HALPE-26)" if _has_own(ev) else "")
+        + ":"
     )
     return ["", title, "", markdown_table(rows, cols)]
 
