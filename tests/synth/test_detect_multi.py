@@ -123,7 +123,8 @@ def test_nobody_in_blank_images(blazepose):
     assert isinstance(det, Detector) and isinstance(det, MultiPersonDetector)
     det.reset()
     kp, sc = det([np.full((120, 160, 3), 90, np.uint8), np.zeros((200, 100, 3), np.uint8)])
-    assert kp.shape == (2, 3, 17, 2) and sc.shape == (2, 3, 17)
+    J = det.skeleton.num_joints  # HALPE-26: COCO-17 + BlazePose's heels and foot index
+    assert kp.shape == (2, 3, J, 2) and sc.shape == (2, 3, J)
     assert np.isnan(kp).all() and (sc == 0).all()
 
 
@@ -156,6 +157,7 @@ def _two_bodies(frames: int = 3) -> tuple[np.ndarray, np.ndarray]:
 
 def _match(kp: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """Median pixel error of each true person (P,) against its nearest detection."""
+    kp = kp[..., : truth.shape[-2], :]  # the COCO-17 joints
     err = np.nanmedian(np.linalg.norm(kp[:, None] - truth[None], axis=-1), axis=-1)  # (N, P)
     return np.nanmin(np.where(np.isfinite(err), err, np.inf), axis=0)
 

@@ -30,6 +30,14 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="keep whole clean stretches of motion in time (a sequence bank, for training the "
         "temporal model) instead of de-duplicated poses",
     )
+    parser.add_argument(
+        "--body",
+        choices=("mocap", "anny"),
+        default="mocap",
+        help="mocap: COCO-17 from the mocap's own skeleton; anny: each pose retargeted onto "
+        "a random anny body and its HALPE-26 joints taken from the mesh (COCO-17 + head top, "
+        "neck, mid-hip and feet; needs rmpl[synth] and anny's cache, ANNY_CACHE_DIR)",
+    )
     parser.set_defaults(run=run)
 
 
@@ -56,6 +64,17 @@ def run(args: argparse.Namespace) -> int:
                  minutes, fps)  # fmt: skip
         return 0
     args.fps = fps
+    if args.body == "anny":
+        if args.sequences:
+            raise InputError(None, "--body", "mocap with --sequences", "anny")
+        from rmpl.synth.body import BodyModel
+        from rmpl.synth.retarget import anny_pose_set, build_pose_bank
+
+        body = BodyModel(joints="halpe26")
+        bank = anny_pose_set(build_pose_bank(args.motion, fps=fps), body, progress=True)
+        save_pose_set(args.out, bank, fps=float(fps), body="anny", skeleton="halpe26")
+        log.info("wrote %s: %d HALPE-26 poses on anny bodies", args.out, len(bank))
+        return 0
     bank = load_motion_dir(args.motion, fps=args.fps)
     save_pose_set(args.out, bank, fps=float(args.fps))
     counts = ", ".join(f"{k}: {v}" for k, v in sorted(bank.counts().items()))

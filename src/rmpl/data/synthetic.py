@@ -18,8 +18,8 @@ import numpy as np
 
 from rmpl.geometry.camera import rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.skeleton import COCO17
-from rmpl.synth.noise import NoiseConfig, detect_like
+from rmpl.skeleton import COCO17, HALPE26
+from rmpl.synth.noise import INPUT_SETS, NoiseConfig, detect_like, input_joint_sets
 
 __all__ = ["Batch", "PairSource", "SamplerConfig", "place_poses", "perturb_extrinsics"]
 
@@ -64,6 +64,9 @@ class SamplerConfig:
             truncation and occluded-miss rates by 2**U(-2s, 2s) (capped at 0.5, or at the
             base rate when that is higher). An unseen
             detector is then one more draw rather than a new distribution. 0 = off.
+        input_sets: with HALPE-26 poses, how often each kind of detector
+            (:data:`rmpl.synth.noise.INPUT_SETS`: which of the nine points beyond COCO-17
+            it gives) draws a sample, as (kind, weight) pairs (a table in TOML).
     """
 
     camera_preset: str = "universal"
@@ -74,8 +77,22 @@ class SamplerConfig:
     calib_noise_deg: float = 0.0
     calib_noise_m: float = 0.0
     noise_randomize: float = 0.0
+    input_sets: tuple[tuple[str, float], ...] = (
+        ("coco17", 0.4),
+        ("blazepose", 0.2),
+        ("body25", 0.2),
+        ("halpe26", 0.2),
+    )
 
     def __post_init__(self) -> None:
+        if isinstance(self.input_sets, dict):  # from TOML
+            object.__setattr__(self, "input_sets", tuple(self.input_sets.items()))
+        unknown = {k for k, _ in self.input_sets} - set(INPUT_SETS)
+        if unknown or not sum(w for _, w in self.input_sets) > 0:
+            raise ValueError(
+                f"input_sets must weigh kinds of {sorted(INPUT_SETS)} (> 0 in all), got "
+                f"{self.input_sets}"
+            )
         if not 0 <= self.noise_randomize <= 3:
             raise ValueError(f"noise_randomize must be in [0, 3], got {self.noise_randomize}")
 
@@ -118,7 +135,8 @@ def place_poses(poses: np.ndarray, rng: np.random.Generator, cfg: SamplerConfig)
     """
     B = poses.shape[0]
     mirror = rng.random(B) < cfg.mirror
-    flipped = poses[:, COCO17.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
+    skel = HALPE26 if poses.shape[1] == HALPE26.num_joints else COCO17
+    flipped = poses[:, skel.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
     poses = np.where(mirror[:, None, None], flipped, poses)
     root = poses[:, 11:13].mean(1)  # mid-hip
     floor = np.nanmin(poses[..., 2], axis=1)
@@ -170,8 +188,8 @@ class PairSource:
         seed: int | None = None,
     ) -> None:
         self.poses = np.asarray(poses, dtype=np.float64)
-        if self.poses.ndim != 3 or self.poses.shape[1:] != (17, 3):
-            raise ValueError(f"poses must have shape (N, 17, 3), got {self.poses.shape}")
+        if self.poses.ndim != 3 or self.poses.shape[1:] not in ((17, 3), (26, 3)):
+            raise ValueError(f"poses must have shape (N, 17 or 26, 3), got {self.poses.shape}")
         self.sampler = sampler or SamplerConfig()
         self.noise = noise or NoiseConfig()
         self.rng = np.random.default_rng(seed)
@@ -189,6 +207,10 @@ class PairSource:
         if train and cfg.noise_randomize > 0:
             noise = randomized_noise(noise, cfg.noise_randomize, rng)
         kp, scores = detect_like(joints, K, R, t, wh, rng, noise)
+        if joints.shape[1] == HALPE26.num_joints:  # the detector's joint set
+            given = input_joint_sets(size, dict(cfg.input_sets), rng)[:, None]  # (B, 1, J)
+            scores = np.where(given, scores, 0.0)
+            kp = np.where(given[..., None], kp, np.nan)
         if train and cfg.drop_rate > 0:
             drop = rng.random(scores.shape) < cfg.drop_rate
             scores = np.where(drop, 0.0, scores)

@@ -21,7 +21,17 @@ model with MakeHuman's phenotypes and rig. What rmpl relies on, checked on anny 
 - Phenotypes, each in [0, 1] (:data:`PHENOTYPES`): gender (0 male, 1 female), age (0 baby,
   1/3 child, 2/3 young adult, 1 old), muscle, weight, height, proportions.
 - Keypoints: ``anny.KeypointsRegressor.coco`` regresses 23 keypoints linearly from the
-  vertices; the first 17 are COCO-17 in rmpl's order (the rest are feet).
+  vertices; the first 17 are COCO-17 in rmpl's order, then the big toe, small toe and heel
+  of each foot (left, right), HALPE-26's order. :class:`BodyModel` with
+  ``joints="halpe26"`` adds HALPE-26's other three points, defined on the mesh and rig:
+
+  - ``head_top``: the top of the skull, the head vertex highest above the eyes in the
+    rest pose (:attr:`BodyModel.head_top_vertex`, a fixed vertex index: anny's topology
+    is shared by every body), posed with the mesh;
+  - ``neck``: the head of anny's ``neck01`` bone, the base of the neck (about C7),
+    posed with the rig;
+  - ``mid_hip``: the midpoint of the two regressed hip keypoints (the pelvis, as HALPE's
+    Hip and BODY_25's MidHip are annotated).
 
 The first ``anny.Anny()`` builds a ~790 MB cache (about 1-4 minutes); point
 ``ANNY_CACHE_DIR`` (or ``cache_dir``) somewhere persistent.
@@ -41,6 +51,7 @@ from rmpl.geometry.camera import rodrigues
 __all__ = [
     "PHENOTYPES",
     "PARTS",
+    "JOINT_SETS",
     "Bodies",
     "BodyModel",
     "sample_phenotypes",
@@ -66,6 +77,8 @@ PARTS: tuple[str, ...] = (
 )
 
 _NUM_COCO = 17
+#: Joint sets :class:`BodyModel` returns.
+JOINT_SETS = ("coco17", "halpe26")
 
 
 @dataclass(frozen=True)
@@ -75,7 +88,8 @@ class Bodies:
     Attributes:
         vertices: shape (B, N, 3), float32, metres.
         faces: triangle vertex indices, shape (F, 3), int32, shared by the batch.
-        keypoints: COCO-17 joints regressed from the vertices, shape (B, 17, 3), metres.
+        keypoints: the model's joints (``BodyModel.joints``: COCO-17, or HALPE-26 whose
+            first 17 are COCO-17), shape (B, J, 3), metres.
     """
 
     vertices: np.ndarray
@@ -196,6 +210,8 @@ class BodyModel:
         cache_dir: anny's cache directory (else ``$ANNY_CACHE_DIR``, else ``~/.cache/anny``).
         device: torch device.
         dtype: ``"float32"`` or ``"float64"``.
+        joints: the keypoints' joint set, one of :data:`JOINT_SETS` (see the module
+            docstring for HALPE-26's definitions on the mesh).
 
     Example (not run here, needs ``rmpl[synth]``)::
 
@@ -205,7 +221,11 @@ class BodyModel:
     """
 
     def __init__(
-        self, cache_dir: str | Path | None = None, device: str = "cpu", dtype: str = "float32"
+        self,
+        cache_dir: str | Path | None = None,
+        device: str = "cpu",
+        dtype: str = "float32",
+        joints: str = "coco17",
     ) -> None:
         import anny
         import anny.paths
@@ -214,6 +234,9 @@ class BodyModel:
         if cache_dir is not None:
             anny.paths.set_anny_cache_path(cache_dir)
         self._torch = torch
+        if joints not in JOINT_SETS:
+            raise ValueError(f"joints must be one of {JOINT_SETS}, got {joints!r}")
+        self.joints = joints
         dtypes = {"float32": torch.float32, "float64": torch.float64}
         if dtype not in dtypes:
             raise ValueError(f"dtype must be one of {sorted(dtypes)}, got {dtype!r}")
@@ -221,7 +244,8 @@ class BodyModel:
         self._device = torch.device(device)
         model = anny.Anny(phenotypes="default", pose_parameterization="local-ref")
         self._model = model.to(device=self._device, dtype=self._dtype).eval()
-        labels = anny.KeypointsRegressor.coco(self._model).labels[:_NUM_COCO]
+        labels = anny.KeypointsRegressor.coco(self._model).labels
+        labels = labels[:_NUM_COCO] if joints == "coco17" else labels
         self._regressor = anny.KeypointsRegressor.coco(self._model, labels=labels).to(
             device=self._device, dtype=self._dtype
         )
@@ -234,6 +258,8 @@ class BodyModel:
         self._rest_heads = rest["rest_bone_heads"][0].double().cpu().numpy()  # (P, 3)
         self._rest_vertices = rest["rest_vertices"][0].double().cpu().numpy()  # (N, 3)
         self.vertex_parts: np.ndarray = self._segment()
+        self.head_top_vertex: int = self._head_top()
+        self._neck = self.bone_index("neck01")
 
     @property
     def num_bones(self) -> int:
@@ -289,12 +315,26 @@ class BodyModel:
         as_t = dict(device=self._device, dtype=self._dtype)
         with torch.no_grad():
             out = self._model(torch.as_tensor(pose, **as_t), torch.as_tensor(phenotypes, **as_t))
-            keypoints = self._regressor(out)
-        return Bodies(
-            vertices=out["vertices"].float().cpu().numpy(),
-            faces=self.faces,
-            keypoints=keypoints.float().cpu().numpy(),
+            keypoints = self._regressor(out).float().cpu().numpy()
+        vertices = out["vertices"].float().cpu().numpy()
+        if self.joints == "halpe26":
+            keypoints = self._halpe26(keypoints, vertices, out["bone_poses"])
+        return Bodies(vertices=vertices, faces=self.faces, keypoints=keypoints)
+
+    def _halpe26(self, regressed: np.ndarray, vertices: np.ndarray, bone_poses) -> np.ndarray:
+        """HALPE-26 (B, 26, 3) from the regressor's 23 points, the mesh and the rig."""
+        head_top = vertices[:, self.head_top_vertex]
+        neck = bone_poses[:, self._neck, :3, 3].float().cpu().numpy()
+        mid_hip = regressed[:, 11:13].mean(axis=1)
+        extra = np.stack([head_top, neck, mid_hip], axis=1)
+        return np.concatenate([regressed[:, :_NUM_COCO], extra, regressed[:, _NUM_COCO:]], 1)
+
+    def _head_top(self) -> int:
+        """The head vertex highest in the rest pose (the body is upright, z up)."""
+        head = np.flatnonzero(
+            np.isin(self.vertex_parts, [PARTS.index("face"), PARTS.index("hair")])
         )
+        return int(head[np.argmax(self._rest_vertices[head, 2])])
 
     def identity_pose(self, num: int) -> np.ndarray:
         """The rest pose (identity deltas), shape (num, P, 4, 4)."""

@@ -25,7 +25,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from rmpl.skeleton import BLAZEPOSE33, COCO17, Skeleton, conversion_matrix
+from rmpl.skeleton import BLAZEPOSE33, EMBED_ALIASES, Skeleton, skeleton_for
 
 __all__ = [
     "Detector",
@@ -36,6 +36,7 @@ __all__ = [
     "with_people_axis",
     "zero_outside",
     "as_image_list",
+    "blazepose_indices",
 ]
 
 Images = np.ndarray | Sequence[np.ndarray]
@@ -148,20 +149,45 @@ def zero_outside(keypoints: np.ndarray, scores: np.ndarray, size: np.ndarray) ->
     return np.where(inside, scores, 0.0)
 
 
+def blazepose_indices(skeleton: Skeleton) -> np.ndarray:
+    """For each joint of ``skeleton``, the BlazePose landmark that gives it, (J,) int; -1
+    where BlazePose has none (HALPE-26's head top, neck, mid-hip and small toes). The foot
+    index stands in for the big toe (:data:`rmpl.skeleton.EMBED_ALIASES`)."""
+    alias = EMBED_ALIASES["blazepose33"]
+    names = [alias.get(n, n) for n in skeleton.joints]
+    return np.array([BLAZEPOSE33._index.get(n, -1) for n in names])
+
+
+def pick_landmarks(landmarks: np.ndarray, source: np.ndarray) -> np.ndarray:
+    """Rows ``source`` (J,) of ``landmarks`` (33, C), NaN where ``source`` is -1: (J, C)."""
+    out = np.asarray(landmarks, float)[np.maximum(source, 0)]
+    out[source < 0] = np.nan
+    return out
+
+
 class MediaPipeDetector:
-    """MediaPipe BlazePose (33 landmarks) mapped to COCO-17, one person per image.
+    """MediaPipe BlazePose (33 landmarks) mapped to HALPE-26 or COCO-17, one person per
+    image.
 
     Args:
         model_complexity: BlazePose model; only 1 ships in the ``mediapipe==0.10.14`` wheel.
         min_detection_confidence: person-detector threshold; below it the image is a miss.
+        joints: ``"halpe26"`` (COCO-17 + heels + foot index as the big toe; the head top,
+            neck, mid-hip and small toes missing) or ``"coco17"``.
 
     Use it as a context manager, or call :meth:`close`, to free the MediaPipe graph.
     """
 
     name = "mediapipe"
-    skeleton = COCO17
 
-    def __init__(self, model_complexity: int = 1, min_detection_confidence: float = 0.5) -> None:
+    def __init__(
+        self,
+        model_complexity: int = 1,
+        min_detection_confidence: float = 0.5,
+        joints: str = "halpe26",
+    ) -> None:
+        self.skeleton = skeleton_for(joints)
+        self._source = blazepose_indices(self.skeleton)
         try:
             import mediapipe as mp
         except ImportError as e:
@@ -176,8 +202,6 @@ class MediaPipeDetector:
             enable_segmentation=False,
             min_detection_confidence=min_detection_confidence,
         )
-        self._to_coco = conversion_matrix(BLAZEPOSE33, COCO17)  # (17, 33), one 1 per row
-        self._source = self._to_coco.argmax(axis=1)
 
     def close(self) -> None:
         self._pose.close()
@@ -189,9 +213,9 @@ class MediaPipeDetector:
         self.close()
 
     def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]:
-        """Detect. See :class:`Detector`. Returns COCO-17 keypoints (B, 17, 2), scores (B, 17)."""
+        """Detect. See :class:`Detector`. Returns keypoints (B, J, 2), scores (B, J)."""
         images = as_image_list(images)
-        J = COCO17.num_joints
+        J = self.skeleton.num_joints
         keypoints = np.full((len(images), J, 2), np.nan)
         scores = np.zeros((len(images), J))
         sizes = np.zeros((len(images), 2))
@@ -202,11 +226,11 @@ class MediaPipeDetector:
             if result.pose_landmarks is None:
                 continue
             lm = result.pose_landmarks.landmark
-            xyv = np.array([(p.x, p.y, p.visibility) for p in lm])[self._source]  # (17, 3)
+            xyv = pick_landmarks([(p.x, p.y, p.visibility) for p in lm], self._source)
             # Normalised coordinates run from the image's left/top edge (0) to its right/bottom
             # edge (1); rmpl's pixel centres are at integers.
             keypoints[i] = xyv[:, :2] * (w, h) - 0.5
-            scores[i] = np.clip(xyv[:, 2], 0.0, 1.0)
+            scores[i] = np.clip(np.nan_to_num(xyv[:, 2]), 0.0, 1.0)
         return keypoints, zero_outside(keypoints, scores, sizes)
 
 

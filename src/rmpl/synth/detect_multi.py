@@ -51,8 +51,14 @@ from pathlib import Path
 
 import numpy as np
 
-from rmpl.skeleton import BLAZEPOSE33, COCO17, conversion_matrix
-from rmpl.synth.detect import Images, as_image_list, zero_outside
+from rmpl.skeleton import skeleton_for
+from rmpl.synth.detect import (
+    Images,
+    as_image_list,
+    blazepose_indices,
+    pick_landmarks,
+    zero_outside,
+)
 
 __all__ = [
     "BlazePoseMulti",
@@ -383,12 +389,13 @@ class BlazePoseMulti:
             of the body size, in median, are one person, and so is a result most of whose
             landmarks lie this close to another's bones (a phantom); the earlier slot
             keeps it.
+        joints: ``"halpe26"`` (COCO-17 + heels + foot index as the big toe; the head top,
+            neck, mid-hip and small toes missing) or ``"coco17"``.
 
     Use it as a context manager, or call :meth:`close`, to free the networks.
     """
 
     name = "blazepose-multi"
-    skeleton = COCO17
 
     def __init__(
         self,
@@ -398,6 +405,7 @@ class BlazePoseMulti:
         track: bool = True,
         detect_every: int = 1,
         same_person: float = 0.1,
+        joints: str = "halpe26",
     ) -> None:
         if max_people < 1 or detect_every < 1:
             raise ValueError(f"max_people and detect_every must be >= 1, got {max_people}, "
@@ -413,7 +421,8 @@ class BlazePoseMulti:
         self._detector = _Network(model_buffer("detector"))
         self._landmarks = _Network(model_buffer("landmarks", keep_outputs=(0, 1)))
         self._anchors = ssd_anchors()
-        self._source = conversion_matrix(BLAZEPOSE33, COCO17).argmax(axis=1)  # (17,)
+        self.skeleton = skeleton_for(joints)
+        self._source = blazepose_indices(self.skeleton)  # (J,), -1 = BlazePose has none
         self.calls = {"detector": 0, "landmarks": 0}  # network runs, for benchmarks
         self.reset()
 
@@ -435,7 +444,7 @@ class BlazePoseMulti:
     def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]:
         """Detect. Returns COCO-17 keypoints (B, N, 17, 2) px and scores (B, N, 17)."""
         images = as_image_list(images)
-        B, N, J = len(images), self.max_people, COCO17.num_joints
+        B, N, J = len(images), self.max_people, self.skeleton.num_joints
         keypoints = np.full((B, N, J, 2), np.nan)
         scores = np.zeros((B, N, J))
         sizes = np.zeros((B, N, 2))
@@ -446,8 +455,10 @@ class BlazePoseMulti:
             sizes[b] = image.shape[1], image.shape[0]
             for n, person in enumerate(self._slots):
                 if person is not None:
-                    keypoints[b, n] = person.landmarks[self._source] - 0.5  # pixel centres
-                    scores[b, n] = person.visibility[self._source]
+                    # pixel centres
+                    keypoints[b, n] = pick_landmarks(person.landmarks, self._source) - 0.5
+                    seen = pick_landmarks(person.visibility[:, None], self._source)[:, 0]
+                    scores[b, n] = np.nan_to_num(seen)
         return keypoints, zero_outside(keypoints, scores, sizes)
 
     # ------------------------------------------------------------------ one frame

@@ -50,7 +50,7 @@ import numpy as np
 
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import SKELETONS
 
 __all__ = [
     "GenerateConfig",
@@ -181,6 +181,10 @@ class GenerateConfig:
         sequence_speed: ``[low, high]`` playback speed, uniform per sequence (1 = real time).
         people: ``[low, high]`` bodies per scene, uniform; ``[1, 1]`` = one body. With more,
             ``num_meshes`` and ``shard_size`` count scenes (see :data:`SCENE_ARRAYS`).
+        joints: the joint set of every array, J: ``"coco17"`` (17), or ``"halpe26"`` (26:
+            COCO-17, then head top, neck, mid-hip and the feet, defined on the mesh in
+            :mod:`rmpl.synth.body`); a detector's joints are placed by name
+            (BlazePose's heels and foot index, the latter in the big-toe slot).
     """
 
     poses: str = "random"
@@ -207,6 +211,7 @@ class GenerateConfig:
     sequence_fps: tuple[float, ...] = (10.0, 60.0)
     sequence_speed: tuple[float, ...] = (1.0, 1.0)
     people: tuple[int, ...] = (1, 1)
+    joints: str = "coco17"
 
     @classmethod
     def from_dict(cls, d: dict, path: str | Path | None = None) -> GenerateConfig:
@@ -258,6 +263,7 @@ class GenerateConfig:
             ("min_age", 0 <= cfg.min_age <= 1, "in [0, 1]"),
             ("max_tries", cfg.max_tries >= 1, ">= 1"),
             ("poses", bool(cfg.poses), "a motion folder, a pose bank .npz or 'random'"),
+            ("joints", cfg.joints in ("coco17", "halpe26"), "'coco17' or 'halpe26'"),
         ]
         checks += _sequence_checks(cfg) + _scene_checks(cfg)
         for name, ok, expected in checks:
@@ -437,6 +443,20 @@ def detect_person(detector, images: list[np.ndarray]) -> tuple[np.ndarray, np.nd
     return kp[rows, best], sc[rows, best]
 
 
+def in_joint_set(detector, kp: np.ndarray, sc: np.ndarray, joints: str):
+    """A detector's keypoints (..., J_det, 2) and scores (..., J_det) in joint set
+    ``joints``: COCO-17 by :func:`rmpl.skeleton.convert`, HALPE-26 by name
+    (:func:`rmpl.skeleton.embed`; joints the detector lacks are missing)."""
+    from rmpl.skeleton import convert, convert_scores, embed, embed_scores
+
+    src = detector.skeleton
+    if src.name == joints:
+        return np.asarray(kp), np.asarray(sc)
+    if joints == "coco17":
+        return convert(kp, src, joints), convert_scores(sc, src, joints)
+    return embed(kp, src, joints), embed_scores(sc, src, joints)
+
+
 class Worker:
     """One process's heavy state: body model, GL renderer, detector and pose bank.
 
@@ -454,7 +474,9 @@ class Worker:
         from rmpl.synth.retarget import load_pose_bank
 
         self.cfg = cfg
-        self.body = BodyModel(cache_dir=cache_dir or os.environ.get("ANNY_CACHE_DIR"))
+        self.body = BodyModel(
+            cache_dir=cache_dir or os.environ.get("ANNY_CACHE_DIR"), joints=cfg.joints
+        )
         self.renderer = Renderer(self.body.faces, self.body.num_vertices)
         self.detector = make_detector(cfg.detector)
         # Single meshes read a PoseBank (poses.npz); sequences a MotionBank (motion.npz).
@@ -587,6 +609,7 @@ def generate_shard(worker: Worker, index: int, out: str | Path) -> dict:
         images, occ = _render_batch(worker, posed, rng, occ_rng)
         t2 = time.perf_counter()
         kp2d, scores = _detect_apart(worker.detector, images)
+        kp2d, scores = in_joint_set(worker.detector, kp2d, scores, cfg.joints)
         t3 = time.perf_counter()
         times["pose"] += t1 - t0
         times["render"] += t2 - t1
@@ -666,12 +689,12 @@ def _pose_batch(worker: Worker, b: int, first: int, rng: np.random.Generator) ->
 def _render_batch(worker: Worker, posed: _Posed, rng, occ_rng) -> tuple[list, np.ndarray]:
     """The b * V images (body-major), and the joints under a pasted square (b * V, 17)."""
     cfg = worker.cfg
-    p, bv = posed, len(posed.joints) * cfg.views
+    p, bv, J = posed, len(posed.joints) * cfg.views, posed.joints.shape[1]
     images = worker.renderer.render(p.vertices, p.colors, p.K, p.R, p.t, p.size, rng=rng)
-    occ = np.zeros((bv, 17), bool)
+    occ = np.zeros((bv, J), bool)
     if cfg.occlusion_rate > 0:
         occ = occlude(
-            images, p.projected.reshape(bv, 17, 2), cfg.occlusion_rate, cfg.occlusion_size, occ_rng
+            images, p.projected.reshape(bv, J, 2), cfg.occlusion_rate, cfg.occlusion_size, occ_rng
         )
     return images, occ
 
@@ -679,17 +702,18 @@ def _render_batch(worker: Worker, posed: _Posed, rng, occ_rng) -> tuple[list, np
 def _batch_arrays(posed: _Posed, kp2d, scores, occ: np.ndarray) -> dict[str, np.ndarray]:
     """One batch's part of every :data:`SHARD_ARRAYS` array, in their dtypes."""
     b, V = posed.K.shape[:2]
+    J = posed.joints.shape[1]
     phen, subject, clip, frame, mirrored = zip(*posed.meta, strict=True)
     return {
         "joints3d": posed.joints.astype(np.float32),
-        "keypoints": np.asarray(kp2d, np.float32).reshape(b, V, 17, 2),
-        "scores": np.asarray(scores, np.float32).reshape(b, V, 17),
+        "keypoints": np.asarray(kp2d, np.float32).reshape(b, V, J, 2),
+        "scores": np.asarray(scores, np.float32).reshape(b, V, J),
         "projected": posed.projected.astype(np.float32),
         "K": posed.K,
         "R": posed.R,
         "t": posed.t,
         "size": posed.size.astype(np.int32),
-        "occluded": occ.reshape(b, V, 17),
+        "occluded": occ.reshape(b, V, J),
         "phenotypes": np.asarray(phen, np.float32),
         "subject": np.asarray(subject, str),
         "clip": np.asarray(clip, str),
@@ -1039,8 +1063,8 @@ def _render_detect(worker: Worker, seq: _Sequence, rng: np.random.Generator, tim
     colors = random_outfits(worker.body.vertex_parts, 1, rng)
     light = random_lighting(rng)
     backdrop = int(rng.integers(0, 2**63 - 1))
-    T, V = len(seq.vertices), len(seq.K)
-    kps, scores = np.full((T, V, 17, 2), np.nan, np.float32), np.zeros((T, V, 17), np.float32)
+    T, V, J = len(seq.vertices), len(seq.K), seq.joints.shape[1]
+    kps, scores = np.full((T, V, J, 2), np.nan, np.float32), np.zeros((T, V, J), np.float32)
 
     def run(frame: int, views: slice, seed: int) -> None:
         t0 = time.perf_counter()
@@ -1056,10 +1080,11 @@ def _render_detect(worker: Worker, seq: _Sequence, rng: np.random.Generator, tim
         )
         t1 = time.perf_counter()
         kp, sc = detect_person(worker.detector, images)
+        kp, sc = in_joint_set(worker.detector, kp, sc, worker.cfg.joints)
         times["render"] += t1 - t0
         times["detect"] += time.perf_counter() - t1
-        kps[frame, views] = np.asarray(kp, np.float32).reshape(len(images), 17, 2)
-        scores[frame, views] = np.asarray(sc, np.float32).reshape(len(images), 17)
+        kps[frame, views] = np.asarray(kp, np.float32).reshape(len(images), J, 2)
+        scores[frame, views] = np.asarray(sc, np.float32).reshape(len(images), J)
 
     if not follows(worker.detector):
         for f in range(T):  # the same seed every frame: the same backgrounds
@@ -1226,6 +1251,7 @@ def _scene(worker: Worker, index: int, rng: np.random.Generator, times: dict) ->
     )
     t2 = time.perf_counter()
     kp, sc = _detect_people_apart(worker.detector, images)  # (V, N, J, 2), (V, N, J)
+    kp, sc = in_joint_set(worker.detector, kp, sc, cfg.joints)
     times["pose"] += t1 - t0
     times["render"] += t2 - t1
     times["detect"] += time.perf_counter() - t2
@@ -1412,8 +1438,8 @@ def _write_manifest(out: Path, cfg: GenerateConfig, detector: str, extra: dict) 
         "format": SEQUENCE_FORMAT if cfg.sequences else SCENE_FORMAT if cfg.scenes else FORMAT,
         "config": _config_dict(cfg),
         "detector": detector,
-        "skeleton": "coco17",
-        "joints": list(COCO17.joints),
+        "skeleton": cfg.joints,
+        "joints": list(SKELETONS[cfg.joints].joints),
         "units": {"3d": "metres", "2d": "pixels, pixel (i, j) centred on (i, j)"},
         "world": "z up, floor at z = 0",
         "camera_model": "x_cam = R X + t; pinhole K, no distortion",

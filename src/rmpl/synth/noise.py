@@ -19,9 +19,16 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 
 from rmpl.geometry.camera import project
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import COCO17, HALPE26
 
-__all__ = ["NoiseConfig", "detect_like", "occlusion_mask"]
+__all__ = [
+    "NoiseConfig",
+    "INPUT_SETS",
+    "detect_like",
+    "occlusion_mask",
+    "joint_sigmas",
+    "input_joint_sets",
+]
 
 # Relative 2D error per COCO-17 joint (fraction of the person's pixel height): face points
 # are precise, wrists, elbows and hips the hardest. Set so that the mean error matches
@@ -49,13 +56,34 @@ _JOINT_SIGMA = np.array(
     ]
 )
 
+# The same for HALPE-26's other nine points (head top, neck, mid-hip, big toes, small toes,
+# heels), used when ``joint_sigma`` has only COCO-17's: the head top and neck like the
+# shoulders and ears, the mid-hip like the hips, the feet like the ankles and a little worse.
+_EXTRA_SIGMA = np.array([0.013, 0.013, 0.020, 0.018, 0.018, 0.018, 0.018, 0.018, 0.018])
+
+
+def joint_sigmas(joint_sigma, num_joints: int) -> np.ndarray:
+    """Per-joint 2D error (J,) for ``num_joints`` joints: ``joint_sigma`` as given, or
+    COCO-17's followed by HALPE-26's defaults (:data:`_EXTRA_SIGMA`)."""
+    sigma = np.asarray(joint_sigma, float)
+    if len(sigma) == num_joints:
+        return sigma
+    if len(sigma) == COCO17.num_joints and num_joints == HALPE26.num_joints:
+        return np.concatenate([sigma, _EXTRA_SIGMA])
+    raise ValueError(f"joint_sigma has {len(sigma)} values for {num_joints} joints")
+
+
+def _flip_pairs(num_joints: int) -> np.ndarray:
+    return np.array(HALPE26.flip_pairs if num_joints == HALPE26.num_joints else COCO17.flip_pairs)
+
 
 @dataclass(frozen=True)
 class NoiseConfig:
     """Parameters of :func:`detect_like` (fractions are of the person's pixel height).
 
     Attributes:
-        joint_sigma: per-joint standard deviation of the 2D error, shape (J,).
+        joint_sigma: per-joint standard deviation of the 2D error, shape (J,) (COCO-17's
+            serve HALPE-26 too, see :func:`joint_sigmas`).
         sigma_spread: log-normal spread of a per-view quality factor on the error.
         occluded_sigma: error multiplier for self-occluded joints.
         occluded_drop: probability that an occluded joint is missed.
@@ -165,7 +193,7 @@ def detect_like(
     """Simulate a 2D detector on a person seen by several cameras.
 
     Args:
-        joints: (B, J, 3) COCO-17 joints, world metres.
+        joints: (B, J, 3) COCO-17 or HALPE-26 joints, world metres.
         K: (B, V, 3, 3). R: (B, V, 3, 3). t: (B, V, 3). size: (B, V, 2) image (w, h).
         rng: random generator.
         config: noise parameters.
@@ -205,7 +233,7 @@ def _noisy_keypoints(uv, height, occ, shape, cfg: NoiseConfig, rng: np.random.Ge
     """
     Bn, V, J = shape
     quality = np.exp(cfg.sigma_spread * rng.standard_normal((Bn, V, 1)))
-    sigma = np.asarray(cfg.joint_sigma)[None, None] * height[..., None] * quality
+    sigma = joint_sigmas(cfg.joint_sigma, J)[None, None] * height[..., None] * quality
     sigma = np.where(occ, sigma * cfg.occluded_sigma, sigma)
     err = sigma[..., None] * rng.standard_normal((Bn, V, J, 2))
     kp = uv + err
@@ -231,7 +259,7 @@ def _confidences(kp, uv, height, occ, out, shape, cfg: NoiseConfig, rng: np.rand
 def _swap_sides(kp, conf, shape, cfg: NoiseConfig, rng: np.random.Generator):
     """Left/right swaps of single pairs, and whole-body mirror confusions, per view."""
     Bn, V, J = shape
-    pairs = np.array(COCO17.flip_pairs)
+    pairs = _flip_pairs(J)
     swap = rng.random((Bn, V, len(pairs))) < cfg.swap_rate
     swap |= rng.random((Bn, V, 1)) < cfg.flip_rate
     perm = np.broadcast_to(np.arange(J), (Bn, V, J)).copy()
@@ -265,3 +293,30 @@ def _inside(points: np.ndarray, size: np.ndarray) -> np.ndarray:
     w, h = size[..., 0:1], size[..., 1:2]
     u, v = points[..., 0], points[..., 1]
     return (u >= 0) & (u <= w - 1) & (v >= 0) & (v <= h - 1)
+
+
+#: Which of HALPE-26's nine extra points a detector gives, by kind of detector: COCO-17
+#: ones none, BlazePose the heels and (as the big toe) the foot index, OpenPose BODY_25 all
+#: but the head top, HALPE-26 / BODY_25B all.
+INPUT_SETS: dict[str, tuple[str, ...]] = {
+    "coco17": (),
+    "blazepose": ("left_big_toe", "right_big_toe", "left_heel", "right_heel"),
+    "body25": HALPE26.joints[18:],
+    "halpe26": HALPE26.joints[17:],
+}
+
+
+def input_joint_sets(
+    batch: int, probabilities: dict[str, float], rng: np.random.Generator
+) -> np.ndarray:
+    """Which HALPE-26 joints each sample's detector gives, (batch, 26) bool: one kind of
+    :data:`INPUT_SETS` per sample (every view of a rig runs the same detector), drawn with
+    ``probabilities`` (kind -> weight)."""
+    kinds = list(probabilities)
+    w = np.array([probabilities[k] for k in kinds], float)
+    draw = rng.choice(len(kinds), size=batch, p=w / w.sum())
+    table = np.zeros((len(kinds), HALPE26.num_joints), bool)
+    for i, k in enumerate(kinds):
+        table[i, :17] = True
+        table[i, HALPE26.indices(INPUT_SETS[k])] = True
+    return table[draw]

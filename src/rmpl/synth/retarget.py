@@ -54,6 +54,7 @@ __all__ = [
     "build_pose_bank",
     "load_pose_bank",
     "save_pose_bank",
+    "anny_pose_set",
 ]
 
 _log = logging.getLogger(__name__)
@@ -554,3 +555,31 @@ def limb_angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     da = _unit(np.stack([a[:, j] - a[:, i] for i, j in COCO_LIMBS], 1))
     db = _unit(np.stack([b[:, j] - b[:, i] for i, j in COCO_LIMBS], 1))
     return np.degrees(np.arccos(np.clip((da * db).sum(-1), -1, 1)))
+
+
+def anny_pose_set(
+    bank: PoseBank, body_model, seed: int = 0, batch: int = 256, progress: bool = False
+):
+    """Every pose of ``bank`` on a random anny body: a :class:`~rmpl.synth.motion.PoseSet`
+    of ``body_model``'s joints (HALPE-26 with ``BodyModel(joints="halpe26")``), so that
+    the parametric training source's 3D targets come from the same mesh definitions as the
+    MHP renders'. Bodies are adult to old phenotypes (:func:`rmpl.synth.body
+    .sample_phenotypes`), one per pose; joints in anny's frame (z up, metres), which
+    :func:`rmpl.data.synthetic.place_poses` stands on the floor.
+    """
+    from rmpl.synth.body import sample_phenotypes
+    from rmpl.synth.motion import PoseSet
+
+    rng = np.random.default_rng(seed)
+    phen = sample_phenotypes(len(bank), rng)
+    out = []
+    starts = range(0, len(bank), batch)
+    if progress:
+        from tqdm import tqdm
+
+        starts = tqdm(starts, desc="anny", unit="batch")
+    for i in starts:
+        idx = np.arange(i, min(i + batch, len(bank)))
+        deltas = retarget(body_model, bank, idx, phen[idx])
+        out.append(body_model(deltas, phen[idx]).keypoints.astype(np.float32))
+    return PoseSet(np.concatenate(out), bank.subject, bank.clip, bank.frame)

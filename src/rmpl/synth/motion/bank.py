@@ -29,10 +29,11 @@ _log = logging.getLogger(__name__)
 
 @dataclass(frozen=True, eq=False)
 class PoseSet:
-    """COCO-17 poses from many clips.
+    """Poses from many clips: COCO-17 from the mocap's own skeleton, or HALPE-26 posed on
+    anny bodies (:func:`rmpl.synth.retarget.anny_pose_set`).
 
     Attributes:
-        poses: joint positions, metres, z up, float32, shape (N, 17, 3).
+        poses: joint positions, metres, z up, float32, shape (N, 17, 3) or (N, 26, 3).
         subject: subject id per pose, e.g. "01" (CMU subject) or "dance-salsa", shape (N,).
         clip: clip id per pose (the file's path under the data root), shape (N,).
         frame: frame index in the source clip (0-based, at its own fps), shape (N,).
@@ -46,11 +47,11 @@ class PoseSet:
     def __post_init__(self) -> None:
         n = len(self.poses)
         if (
-            self.poses.shape[1:] != (17, 3)
+            self.poses.shape[1:] not in ((17, 3), (26, 3))
             or not len(self.subject) == len(self.clip) == len(self.frame) == n
         ):
             raise ValueError(
-                f"poses must have shape (N, 17, 3) with N subject/clip/frame entries, got "
+                f"poses must have shape (N, 17 or 26, 3) with N subject/clip/frame entries, got "
                 f"{self.poses.shape}, {len(self.subject)}, {len(self.clip)}, {len(self.frame)}"
             )
 
