@@ -19,8 +19,11 @@ Install both with ``pip install 'rmpl[detect]'``.
 The result is a :class:`rmpl.io.keypoints.Keypoints2D` with ``P`` = the most people any
 view had in a frame (at least 1; a person's index in one view says nothing about the same
 index in another view or, for a detector that does not follow people, another frame),
-COCO-17 joints, the views named after the files (or folders) without their suffix, frames
-numbered from 0 and, for videos, the videos' frame rate.
+the views named after the files (or folders) without their suffix, frames numbered from 0
+and, for videos, the videos' frame rate. Its joints are HALPE-26 when the detector's joint
+set has COCO-17 and feet, neck, head top or mid-hip (BlazePose-33: its heels, and its foot
+index in the big-toe slot, :func:`rmpl.skeleton.embed`; the HALPE-26 joints it lacks are
+missing), else COCO-17 (:func:`rmpl.io.keypoints.richest`).
 
 Every input is checked before any detection runs, and bad input raises one
 :class:`rmpl.errors.InputError` naming the file: a video OpenCV cannot open or decode,
@@ -31,10 +34,12 @@ found in any frame is named in a warning; nobody found in any view is an InputEr
 Detection is resumable: with ``cache_dir``, each finished view is saved there
 (``<index>_<view>.npz``) together with a fingerprint of its input (file names, sizes,
 modification times) and of the detector (its name and people per frame), and a later call
-with the same input and detector reuses it; one- and multi-person results never mix.
+with the same input and detector reuses it; one- and multi-person results never mix. A
+view saved in COCO-17 beside views detected in HALPE-26 is placed in HALPE-26 (its extra
+joints missing).
 
 Shape glossary: ``T`` frames, ``V`` views, ``P`` people slots, ``N`` people one detector
-call returns per image, ``J`` joints (17).
+call returns per image, ``J`` joints (17 or 26).
 """
 
 from __future__ import annotations
@@ -287,14 +292,26 @@ def _make_detector(detector):
     return detector, False
 
 
-def _to_coco17(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    from rmpl.skeleton import convert, convert_scores
+def _output_joints(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A detector's (*, J, 2), (*, J) in the richest joint set it supports: HALPE-26 (by
+    name, :func:`rmpl.skeleton.embed`) when its joints include COCO-17 and any of the nine
+    extra ones, else COCO-17."""
+    from rmpl.io.keypoints import richest
+    from rmpl.skeleton import convert, convert_scores, embed, embed_scores
 
     name = detector.skeleton.name
-    if name == "coco17":
+    to = richest(name)
+    if name == to:
         return kp, sc
-    kp, sc = convert(kp, name, "coco17"), convert_scores(sc, name, "coco17")
+    if to == "halpe26":
+        return embed(kp, name, to), embed_scores(sc, name, to)
+    kp, sc = convert(kp, name, to), convert_scores(sc, name, to)
     return kp, np.where(np.isnan(kp).any(-1), 0.0, sc)
+
+
+def _joint_set(num_joints: int) -> str:
+    """The joint set of :func:`_output_joints`' results by their number of joints."""
+    return {17: "coco17", 26: "halpe26"}[num_joints]
 
 
 def _detect_stream(
@@ -329,7 +346,7 @@ def _detect_stream(
     N = max(k.shape[1] for k in kps)  # a detector may return fewer slots in some calls
     kp = np.concatenate([_pad_people(k, N) for k in kps])
     sc = np.concatenate([_pad_people(s, N) for s in scs])
-    return _to_coco17(detector, kp, sc)
+    return _output_joints(detector, kp, sc)
 
 
 def _pad_people(a: np.ndarray, N: int) -> np.ndarray:
@@ -377,6 +394,8 @@ def _cached_view(path: Path, stamp: str) -> tuple[np.ndarray, np.ndarray] | None
         with np.load(path, allow_pickle=False) as data:
             if str(data["stamp"]) != stamp or data["keypoints"].ndim != 4:
                 return None
+            if data["keypoints"].shape[-2] not in (17, 26):
+                return None
             return data["keypoints"], data["scores"]
     except (OSError, KeyError, ValueError):
         log.warning("ignoring an unreadable detection cache %s", path)
@@ -411,7 +430,8 @@ def _detect_views(
     cache_dir: str | Path | None,
     progress: bool,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Detect every view (or reuse its cache): (T, V, P, J, 2), (T, V, P, J)."""
+    """Detect every view (or reuse its cache): (T, V, P, J, 2), (T, V, P, J), and the joint
+    set's name."""
     det, owned = None, False
     kps, scs = [], []
     try:
@@ -435,7 +455,13 @@ def _detect_views(
     finally:
         if owned:
             det.close()
-    return _stack_views(kps, scs, sources)
+    from rmpl.skeleton import embed, embed_scores
+
+    skeleton = _joint_set(max(k.shape[-2] for k in kps))
+    for v, k in enumerate(kps):  # a COCO-17 view saved beside HALPE-26 ones
+        if _joint_set(k.shape[-2]) != skeleton:
+            kps[v], scs[v] = embed(k, "coco17", skeleton), embed_scores(scs[v], "coco17", skeleton)
+    return (*_stack_views(kps, scs, sources), skeleton)
 
 
 def _stack_views(
@@ -486,8 +512,9 @@ def detect_videos(
         progress: show a progress bar per view.
 
     Returns:
-        COCO-17 keypoints (T, V, P, 17, 2) in pixels, scores (T, V, P, 17); views named after
-        the files, frames 0..T-1, the videos' frame rate.
+        Keypoints (T, V, P, J, 2) in pixels, scores (T, V, P, J), COCO-17 or HALPE-26 (see
+        the module docstring); views named after the files, frames 0..T-1, the videos'
+        frame rate.
 
     Raises:
         InputError: bad input (see the module docstring), before any detection runs; or
@@ -496,7 +523,7 @@ def detect_videos(
     infos = check_videos(paths)
     names = view_names(paths)
     T = infos[0].num_frames
-    kp, sc = _detect_views(
+    kp, sc, skeleton = _detect_views(
         names,
         paths,
         input_fingerprint(paths, "videos"),
@@ -507,7 +534,7 @@ def detect_videos(
         cache_dir,
         progress,
     )
-    return Keypoints2D(kp, sc, "coco17", names, np.arange(T), infos[0].fps)
+    return Keypoints2D(kp, sc, skeleton, names, np.arange(T), infos[0].fps)
 
 
 def detect_images(
@@ -529,8 +556,8 @@ def detect_images(
         fps: frame rate to record, if known.
 
     Returns:
-        COCO-17 keypoints (T, V, P, 17, 2) in pixels, scores (T, V, P, 17); views named after
-        the folders, frames 0..T-1.
+        Keypoints (T, V, P, J, 2) in pixels, scores (T, V, P, J), COCO-17 or HALPE-26 (see
+        the module docstring); views named after the folders, frames 0..T-1.
 
     Raises:
         InputError: bad input (see the module docstring), before any detection runs (an
@@ -540,7 +567,7 @@ def detect_images(
     files = check_image_folders(folders)
     names = view_names(folders)
     T = len(files[0])
-    kp, sc = _detect_views(
+    kp, sc, skeleton = _detect_views(
         names,
         folders,
         input_fingerprint(folders, "images"),
@@ -551,4 +578,4 @@ def detect_images(
         cache_dir,
         progress,
     )
-    return Keypoints2D(kp, sc, "coco17", names, np.arange(T), fps)
+    return Keypoints2D(kp, sc, skeleton, names, np.arange(T), fps)

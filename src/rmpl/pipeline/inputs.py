@@ -5,6 +5,10 @@ Shelf/4D-association folder, or a 2D detector (``detect2d.DETECTORS``) on videos
 folders with a cache and a fingerprint of the inputs), and matches the 2D views to the
 cameras by name (by order, with a warning, only when no name matches; a partial match is
 refused).
+
+The 2D keeps the joints its source gives beyond COCO-17: a file or detector with feet, neck,
+head top or mid-hip gives HALPE-26 (:func:`rmpl.io.keypoints.load_keypoints`), otherwise
+COCO-17; :attr:`Inputs.skeleton` names it. HALPE-26's first 17 joints are COCO-17.
 """
 
 from __future__ import annotations
@@ -50,13 +54,16 @@ class InputSpec:
 
 @dataclass
 class Inputs:
-    """Matched inputs: keypoints (T, V, P, J, 2), scores (T, V, P, J), the rig, frames."""
+    """Matched inputs: keypoints (T, V, P, J, 2), scores (T, V, P, J), the rig, frames, and
+    the joint set of the keypoints (``"coco17"``, or ``"halpe26"`` when the 2D has feet,
+    neck, head top or mid-hip; a key of :data:`rmpl.skeleton.SKELETONS`)."""
 
     rig: Rig
     keypoints: np.ndarray
     scores: np.ndarray
     frames: np.ndarray
     fps: float | None
+    skeleton: str = "coco17"
 
 
 def _shelf4d_root(paths: list[str]) -> Path | None:
@@ -72,26 +79,30 @@ def _shelf4d_root(paths: list[str]) -> Path | None:
 
 
 def _shelf4d_keypoints(root: Path):
-    """Shelf/4D-association detections: group each view's candidates into people."""
+    """Shelf/4D-association detections: group each view's candidates into people, in
+    HALPE-26 (BODY_25's neck, mid-hip and feet kept; no head top)."""
     from tqdm import tqdm
 
     from rmpl.data.shelf import load_shelf
-    from rmpl.io.keypoints import Keypoints2D
+    from rmpl.io.keypoints import Keypoints2D, richest
     from rmpl.pipeline.association import group_people
+    from rmpl.skeleton import SKELETONS
 
     data = load_shelf(root)
     groups = [
         [group_people(c) for c in frame]
         for frame in tqdm(data.detections, desc="grouping", unit="frame")
     ]
+    skeleton = richest(data.detections[0][0].skeleton) if data.detections else "coco17"
+    J = SKELETONS[skeleton].num_joints
     P = max(1, max(len(k) for frame in groups for k, _ in frame))
     T, V = len(groups), len(data.rig)
-    kp = np.full((T, V, P, 17, 2), np.nan)
-    sc = np.zeros((T, V, P, 17))
+    kp = np.full((T, V, P, J, 2), np.nan)
+    sc = np.zeros((T, V, P, J))
     for t, frame in enumerate(groups):
         for v, (k, s) in enumerate(frame):
             kp[t, v, : len(k)], sc[t, v, : len(k)] = k, s
-    return Keypoints2D(kp, sc, "coco17", data.rig.names, np.asarray(data.frames), None)
+    return Keypoints2D(kp, sc, skeleton, data.rig.names, np.asarray(data.frames), None)
 
 
 def _load_2d(spec: InputSpec, cache: Path | None):
@@ -179,7 +190,9 @@ def _save_cache(kp, cache: Path, stamp_path: Path, stamp: dict, resume: Path) ->
 
 def load_inputs(spec: InputSpec, cache: Path | None = None) -> Inputs:
     """Read the calibration and the 2D input (files, or detections of videos / image folders
-    cached in ``cache``), and put the views in the rig's order."""
+    cached in ``cache``), and put the views in the rig's order. The 2D is in the richest
+    joint set its source gives (:attr:`Inputs.skeleton`); a cache of COCO-17 detections
+    made before feet were kept is used as it is (delete it to detect the feet)."""
     from rmpl.io.calibration import load_rig
 
     rig = load_rig(spec.calib)
@@ -189,7 +202,7 @@ def load_inputs(spec: InputSpec, cache: Path | None = None) -> Inputs:
         raise InputError(
             spec.source, "scores", "at least one keypoint with confidence > 0", "all zero"
         )
-    return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or spec.fps)
+    return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or spec.fps, kp.skeleton)
 
 
 def _match_views(kp, rig: Rig, spec: InputSpec) -> tuple[np.ndarray, np.ndarray]:
