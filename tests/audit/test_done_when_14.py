@@ -194,19 +194,20 @@ def test_the_shipped_model_stitched_agrees_with_one_long_window():
     for views in ([0, 2], [0, 1, 2, 3]):
         kp, sc = k2d.keypoints[:, views, 0], k2d.scores[:, views, 0]
         sub = Rig(tuple(rig[i] for i in views))
-
-        def lift(window: int) -> np.ndarray:
-            lifter.model.config = config.with_(window=window)
-            return lifter.lift_track(kp, sc, sub, fps=k2d.fps, joints=k2d.skeleton).points
-
         try:
-            long = lift(T)
+            long = _lift_in_windows(lifter, T, kp, sc, sub, k2d)
             for window in (16, config.window):
-                d = np.linalg.norm(lift(window) - long, axis=-1)
+                got = _lift_in_windows(lifter, window, kp, sc, sub, k2d)
+                d = np.linalg.norm(got - long, axis=-1)
                 assert np.isfinite(d).all()
                 assert d.mean() < 0.003 and d.max() < 0.02, (views, window, d.mean(), d.max())
         finally:
             lifter.model.config = config
+
+
+def _lift_in_windows(lifter, window, kp, sc, rig, k2d) -> np.ndarray:
+    lifter.model.config = lifter.model.config.with_(window=window)
+    return lifter.lift_track(kp, sc, rig, fps=k2d.fps, joints=k2d.skeleton).points
 
 
 # --------------------------------------------------------------------------- bad input
