@@ -37,6 +37,7 @@ __all__ = [
     "associate",
     "associate_candidates",
     "cluster_people",
+    "coco17_joints",
     "group_people",
     "match_poses",
     "ray_distance_cost",
@@ -423,9 +424,17 @@ def _check_people(keypoints, scores, num_views: int):
     return kps, scs, J
 
 
-def _grouping_joints(num_joints: int, skeleton: str | None) -> list[int]:
-    """Indices of the joints :func:`associate` compares: the COCO-17 ones when the joint set
-    has them all, else every joint."""
+def coco17_joints(num_joints: int, skeleton: str | None = None) -> list[int]:
+    """Indices of the COCO-17 joints, in COCO order, of a joint set that has them all, else
+    of every joint: the joints :func:`associate` compares.
+
+    Args:
+        num_joints: J of the keypoints.
+        skeleton: their joint set; None: COCO-17 for 17 joints, HALPE-26 for 26.
+
+    >>> coco17_joints(26) == list(range(17)), coco17_joints(12) == list(range(12))
+    (True, True)
+    """
     if skeleton is None:
         skeleton = {17: "coco17", 26: "halpe26"}.get(num_joints)
     if skeleton is not None:
@@ -484,7 +493,7 @@ def associate(
     kp_all = np.concatenate(kps).reshape(-1, J, 2)
     sc_all = np.where(np.isfinite(kp_all).all(-1), np.nan_to_num(np.concatenate(scs)), 0.0)
     sc_all = sc_all.reshape(-1, J)
-    use = _grouping_joints(J, skeleton)
+    use = coco17_joints(J, skeleton)
     cost = ray_distance_cost(kp_all[:, use], sc_all[:, use], views, rig, cfg)
     labels = cluster_people(cost, views, cfg.max_cost)
     C = int(labels.max()) + 1 if len(labels) else 0

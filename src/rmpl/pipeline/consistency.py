@@ -42,6 +42,14 @@ Definitions (all per person, frame and view):
   ``out_of_view`` when it projects outside the image or behind the camera; ``absent``
   when the person has no 3D in that frame.
 
+**The joints compared are COCO-17's**, also when the 2D or the 3D has more (HALPE-26's
+head top, neck, mid-hip and feet are left out; a joint set without all of COCO-17 is
+compared on every joint). The threshold below and the 5-joint minimum were set for
+COCO-17's median; six foot points gathered at the ankles would pull the median towards the
+feet, where a neighbour's feet can lie closer than his body, and move the centroid that sets
+the size; and every existing run keeps its statuses. The 3D may also have another joint set
+than the 2D (a COCO-17 model on HALPE-26 2D, or the reverse); COCO-17 is in both.
+
 **Threshold: 0.2 of the person's size** (34 cm at the person's distance for 1.70 m).
 A detector's error on a person it has found is a few per cent of the person's height
 (COCO's keypoint similarity scores a joint with a tolerance of 2.5-10.7% of the object's
@@ -81,6 +89,7 @@ import numpy as np
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.triangulate import triangulate
 from rmpl.io.poses import ViewStatus
+from rmpl.pipeline.association import coco17_joints
 
 __all__ = [
     "EXIT_VIEWS_DISAGREE",
@@ -305,6 +314,8 @@ def check_views(
     heights: np.ndarray | None = None,
     config: ConsistencyConfig | None = None,
     mirror: np.ndarray | None = None,
+    skeleton: str | None = None,
+    points_skeleton: str | None = None,
 ) -> Consistency:
     """Check every person's 3D against each view's 2D (see the module docstring).
 
@@ -316,14 +327,23 @@ def check_views(
         rig: the V cameras.
         heights: (P,) metres, NaN unknown (then 1.70 m); sets each person's size.
         config: thresholds.
-        mirror: (J,) the joint permutation exchanging left and right
+        mirror: (J,) the joint permutation exchanging left and right of the 2D's joint set
             (:meth:`rmpl.skeleton.Skeleton.flip_permutation`), to tell left/right swaps;
             None skips that.
+        skeleton, points_skeleton: the joint sets of ``keypoints`` and ``points``; None:
+            COCO-17 for 17 joints, HALPE-26 for 26. Only their COCO-17 joints are used (see
+            the module docstring).
 
     Returns:
         :class:`Consistency`.
     """
     cfg = config or ConsistencyConfig()
+    use = coco17_joints(keypoints.shape[-2], skeleton)
+    if mirror is not None:
+        where = {j: i for i, j in enumerate(use)}
+        mirror = np.array([where[int(np.asarray(mirror)[j])] for j in use])
+    keypoints, scores = keypoints[..., use, :], scores[..., use]
+    points = points[..., coco17_joints(points.shape[-2], points_skeleton), :]
     thr = cfg.threshold
     present = ~np.isnan(points).all((-1, -2))  # (T, P)
     size = _sizes(points, keypoints, rig, heights)
