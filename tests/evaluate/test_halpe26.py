@@ -221,8 +221,11 @@ def test_rmpl_methods_with_a_26_joint_model(halpe_model, J):
     assert pred.shape == (4, 26, 3) and np.isfinite(pred).all()
     floor = MonocularMethod(model=str(halpe_model))
     assert floor(kp, sc, rig).shape == (4, 26, 3)  # more views: the plain lifter
-    one = floor(kp[:, :1], sc[:, :1], rig[[0]])  # one view: COCO-17 by construction
-    assert one.shape == (4, 17, 3)
+    one = floor(kp[:, :1], sc[:, :1], rig[[0]])  # one view: depth from the cues
+    assert one.shape == (4, 26, 3)
+    seq = MonocularMethod(model=str(halpe_model))  # with "time": tracks of one view
+    pred, at = seq(kp[:, :1], sc[:, :1], np.arange(4), 4, rig[[0]], 25.0)
+    assert pred.shape[1:] == (26, 3) and len(pred) == len(at)
     # The shipped COCO-17 model takes HALPE-26 2D (its first 17 joints).
     assert make_method("rmpl")(kp, sc, rig).shape == (4, 17, 3)
 

@@ -13,8 +13,8 @@ baselines use its COCO-17 joints (the first 17); a lifter takes the joints its m
 :mod:`rmpl.pipeline.monocular`: the shipped lifter, then depth from the floor, the body-size
 prior and (with "time") whole tracks; CUES is any of floor, size, time joined by + (default
 all three). With two or more views it is exactly ``rmpl``. Its floor is set by ``rmpl
-evaluate --floor`` (:attr:`MonocularMethod.floor`). With one view it is COCO-17 whatever
-the model outputs: the depth cues of :mod:`rmpl.pipeline.monocular` place COCO-17 poses.
+evaluate --floor`` (:attr:`MonocularMethod.floor`). Its poses have the model's joints
+(the cues read the COCO-17 ones and the depth moves all).
 """
 
 from __future__ import annotations
@@ -102,9 +102,6 @@ class MonocularMethod:
     (:func:`rmpl.pipeline.monocular.lift_stretch`). Called per frame (``fn(kp, sc, rig)``,
     as the synthetic scenes do), it uses the floor and size cues only.
 
-    With one view the poses are COCO-17 (the first 17 joints of a HALPE-26 model: the depth
-    cues place COCO-17 poses); with more, the model's own joints, as ``rmpl``.
-
     Args:
         cues: the depth cues, e.g. "floor+size" ("" = all).
         model: the per-frame model, a shipped name or a checkpoint directory.
@@ -138,12 +135,12 @@ class MonocularMethod:
         return convention_floor(rig.R, rig.centers)
 
     def _lift_fn(self, up):
-        """The lifter for :mod:`rmpl.pipeline.monocular`: COCO-17 2D in, COCO-17 poses out."""
-        lifter, J = self._lifter, COCO17.num_joints
+        """The lifter for :mod:`rmpl.pipeline.monocular`: poses in the model's joints."""
+        lifter = self._lifter
 
         def fn(kp, sc, rig):
-            r = lifter.lift(kp, sc, rig, up=up, joints=COCO17.name)
-            return r.points[..., :J, :], r.num_views[..., :J]
+            r = lifter.lift(*fit_input(kp, sc, lifter.num_joints), rig, up=up)
+            return r.points, r.num_views
 
         return fn
 
@@ -162,11 +159,9 @@ class MonocularMethod:
         if len(rest) == 1:  # per frame
             rig = rest[0]
             if not ((sc > 0) & np.isfinite(kp).all(-1)).any():
-                J = self._lifter.num_joints if len(rig) > 1 else COCO17.num_joints
-                return np.full((*kp.shape[:-3], J, 3), np.nan)
+                return np.full((*kp.shape[:-3], self._lifter.num_joints, 3), np.nan)
             if len(rig) > 1:
                 return self._multi_view(kp, sc, rig)
-            kp, sc = kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints]
             floor = self._floor(rig)
             up = None if floor is None else floor.n
             cfg = replace(self.config, cues=tuple(c for c in self.config.cues if c != "time"))
@@ -179,10 +174,9 @@ class MonocularMethod:
             return self._multi_view(kp, sc, rig), frame
         from rmpl.evaluate.sequences import stretches
 
-        kp, sc = kp[..., : COCO17.num_joints, :], sc[..., : COCO17.num_joints]
         floor = self._floor(rig)
         up = None if floor is None else floor.n
-        preds, at = [np.zeros((0, kp.shape[-2], 3))], [np.zeros(0, int)]
+        preds, at = [np.zeros((0, self._lifter.num_joints, 3))], [np.zeros(0, int)]
         fn = self._lift_fn(up)
         for a, b, step in stretches(num_frames, *rest[4:6]):
             rows = (frame >= a) & (frame < b)
