@@ -1,0 +1,56 @@
+"""Triangulation of HALPE-26 2D: the feet, neck, head top and mid-hip are triangulated where
+two views see them, and the COCO-17 joints come out as they do from COCO-17 2D."""
+
+import numpy as np
+
+from rmpl.geometry.triangulate import triangulate, triangulate_robust
+from rmpl.skeleton import COCO17, HALPE26
+from tests.geometry.test_camera import random_rig
+
+
+def _scene(seed: int, views: int = 4, people: int = 3):
+    rng = np.random.default_rng(seed)
+    rig = random_rig(rng, views)
+    X = rng.uniform(-0.6, 0.6, (people, 26, 3)) + [0, 0, 1]
+    kp = rig.project(X) + rng.normal(0, 0.5, (people, views, 26, 2))
+    sc = rng.uniform(0.4, 1.0, kp.shape[:-1])
+    return rng, rig, X, kp, sc
+
+
+def test_extra_joints_triangulated_where_two_views_see_them():
+    _, rig, X, kp, sc = _scene(0)
+    heel = HALPE26.index("left_heel")
+    toe = HALPE26.index("right_big_toe")
+    kp[:, 1:, heel], sc[:, 1:, heel] = np.nan, 0.0  # the left heel in one view only
+    kp[:, 2:, toe], sc[:, 2:, toe] = np.nan, 0.0  # the right big toe in two
+    for res in (
+        triangulate(kp, sc, rig),
+        triangulate_robust(kp, sc, rig, max_error=50.0),
+    ):
+        assert res.points.shape == (3, 26, 3)
+        assert np.isnan(res.points[:, heel]).all()
+        assert (res.num_views[:, toe] == 2).all()
+        others = [j for j in range(17, 26) if j != heel]
+        assert np.abs(res.points[:, others] - X[:, others]).max() < 0.02  # 0.5 px noise
+
+
+def test_coco17_part_is_the_coco17_triangulation():
+    _, rig, _, kp, sc = _scene(1, views=5)
+    kp[0, 2, 5:11] = kp[0, 2, 5:11] + 80.0  # an outlier view on the arms
+    dlt26, dlt17 = triangulate(kp, sc, rig), triangulate(kp[..., :17, :], sc[..., :17], rig)
+    np.testing.assert_array_equal(dlt26.points[:, :17], dlt17.points)
+    rob26 = triangulate_robust(kp, sc, rig, swap_pairs=HALPE26.flip_pairs)
+    rob17 = triangulate_robust(kp[..., :17, :], sc[..., :17], rig, swap_pairs=COCO17.flip_pairs)
+    np.testing.assert_array_equal(rob26.points[:, :17], rob17.points)
+    np.testing.assert_array_equal(rob26.views[..., :17], rob17.views)
+
+
+def test_swapped_heels_in_one_view_are_swapped_back():
+    _, rig, X, kp, sc = _scene(2, views=4, people=1)
+    left, right = HALPE26.index("left_heel"), HALPE26.index("right_heel")
+    X[0, left], X[0, right] = [0.3, 0.0, 0.05], [-0.3, 0.0, 0.05]  # heels 60 cm apart
+    kp = rig.project(X)
+    kp[0, 1, [left, right]] = kp[0, 1, [right, left]]  # the detector confused them in view 1
+    res = triangulate_robust(kp, sc, rig, max_error=5.0, swap_pairs=HALPE26.flip_pairs)
+    assert np.abs(res.points[0, [left, right]] - X[0, [left, right]]).max() < 1e-6
+    assert res.views[0, :, [left, right]].all()  # every view used, view 1 swapped back
