@@ -23,7 +23,7 @@ import numpy as np
 
 from rmpl.data.base import MultiViewDataset, coco17_by_name
 from rmpl.errors import InputError
-from rmpl.skeleton import SHELF14
+from rmpl.skeleton import COCO17, SHELF14
 
 __all__ = [
     "DATASETS",
@@ -200,8 +200,8 @@ def _shelf4d(root: Path) -> MultiViewDataset:
     from rmpl.pipeline.association import group_people
 
     data = load_shelf(root)
-    groups = [
-        [group_people(c) for c in frame]
+    groups = [  # COCO-17 people (MultiViewDataset's 2D), as the published tables used
+        [group_people(c, output=COCO17.name) for c in frame]
         for frame in tqdm(data.detections, desc="grouping", unit="frame", leave=False)
     ]
     T, V = len(groups), len(data.rig)
