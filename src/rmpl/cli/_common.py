@@ -162,6 +162,18 @@ def resolve_floor(spec: str | None, rig: Rig, up):
     return check_floor(parse_floor(spec), rig.centers)
 
 
+def log_joint_sets(joints_2d: str, joints_3d: str) -> None:
+    """Say which joint set the 2D came in and which one the 3D is written in."""
+    from rmpl.skeleton import SKELETONS
+
+    s = SKELETONS[joints_3d]
+    extra = [n for n in s.joints if n not in SKELETONS[joints_2d].joints]
+    log.info(
+        "joints: 2D %s, 3D %s (%d joints%s)", joints_2d, s.name, s.num_joints,
+        f"; estimated without 2D: {', '.join(extra)}" if extra else "",
+    )  # fmt: skip
+
+
 def one_camera(rig: Rig, method: str, model: str) -> bool:
     """Whether a run takes the single-view path (:mod:`rmpl.pipeline.monocular`): one
     camera, learned lifting with a per-frame model."""
@@ -185,7 +197,7 @@ def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool):
         check_cutoff(cfg.cutoff, inputs.fps)
     return lift_single_view(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, floor, cfg,
-        temporal=temporal,
+        temporal=temporal, joints=inputs.skeleton,
     )  # fmt: skip
 
 
@@ -212,9 +224,10 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
             )
         poses = run(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
-            temporal=False,
+            temporal=False, joints=inputs.skeleton,
         )  # fmt: skip
     check_estimated(poses, args, method)
+    log_joint_sets(inputs.skeleton, poses.skeleton)
     if out.suffix.lower() in (".trc", ".c3d") and not poses.fps:
         raise InputError(out, "fps", "a frame rate for TRC/C3D (the input has none: pass --fps)")
     save_poses(poses, out)

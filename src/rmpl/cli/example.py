@@ -48,15 +48,16 @@ def run(args: argparse.Namespace) -> int:
         fps=None,
     )
     inputs = load_calibration_and_2d(ns)
-    gt = np.load(EXAMPLE / "ground_truth.npz")["points"][:, 0]  # (T, J, 3)
+    gt = np.load(EXAMPLE / "ground_truth.npz")["points"][:, 0, :17]  # (T, 17, 3)
     out = Path(args.out)
     results = {}
     for method in ("rmpl", "robust", "triangulate"):
         cfg = RunConfig(method=method, model=args.model)
         poses = run_pipeline(
-            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
-        )
-        results[method] = poses.points[:, 0]
+            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
+            joints=inputs.skeleton,
+        )  # fmt: skip
+        results[method] = poses.points[:, 0, :17]  # scored on COCO-17 (HALPE-26's first 17)
         if method == "rmpl":
             write_all(poses, inputs, out, list(FORMATS))
     sc = inputs.scores

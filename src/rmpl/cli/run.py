@@ -113,8 +113,9 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--pose2sim",
         default="pose2sim-y-up",
         choices=["pose2sim-y-up", "z-up", "off"],
-        help="one TRC + C3D per person in OUT/pose-3d/ for Pose2Sim/OpenSim (COCO_17 marker "
-        "names): in Pose2Sim's Y-up axes (default), the world's Z-up axes, or off",
+        help="one TRC + C3D per person in OUT/pose-3d/ for Pose2Sim/OpenSim (Pose2Sim's "
+        "COCO_17 or HALPE_26 marker names, by the model's joint set): in Pose2Sim's Y-up axes "
+        "(default), the world's Z-up axes, or off",
     )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(
@@ -172,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
         check_cameras,
         check_estimated,
         load_calibration_and_2d,
+        log_joint_sets,
         one_camera,
         run_one_camera,
     )
@@ -215,9 +217,11 @@ def run(args: argparse.Namespace) -> int:
                 args.model,
             )
         poses = run_pipeline(
-            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg
-        )
+            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
+            joints=inputs.skeleton,
+        )  # fmt: skip
     check_estimated(poses, args, args.method)
+    log_joint_sets(inputs.skeleton, poses.skeleton)
     if not single and poses.uncertainty is not None and np.isfinite(poses.uncertainty).any():
         r = poses.uncertainty[np.isfinite(poses.uncertainty)] * 1000
         log.info(

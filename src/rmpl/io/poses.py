@@ -33,7 +33,8 @@ File formats, chosen from the extension by :func:`save_poses`:
     written missing.
 
 ``.bvh``
-    One person (COCO-17) as a skeleton with constant bone lengths and per-frame joint
+    One person's COCO-17 joints (HALPE-26 poses: their first 17; head top, neck, mid-hip and
+    feet are not in the BVH hierarchy) as a skeleton with constant bone lengths and per-frame joint
     rotations, fitted by :mod:`rmpl.io.bvh`; ``m`` (default) or ``mm``; contiguous frames
     from ``frames[0]`` to ``frames[-1]`` (missing ones interpolated).
 
@@ -742,8 +743,8 @@ def _c3d_labels(writer, labels: list[str]) -> None:
 
 
 def _check_bvh(poses: Poses3D, path: Path) -> None:
-    if poses.skeleton != "coco17":
-        raise InputError(path, "skeleton", "coco17 for BVH", poses.skeleton)
+    if poses.skeleton not in ("coco17", "halpe26"):
+        raise InputError(path, "skeleton", "coco17 or halpe26 for BVH", poses.skeleton)
     if poses.num_people != 1:
         raise InputError(path, "points", "one person per BVH file", f"{poses.num_people}")
     seen = ~np.isnan(poses.points[:, 0, [5, 6, 11, 12]]).any(-1)
@@ -756,6 +757,6 @@ def _bvh_text(poses: Poses3D, units: str, up_axis: str | None) -> str:
 
     first = int(poses.frames[0])
     points = np.full((int(poses.frames[-1]) - first + 1, 17, 3), np.nan)
-    points[poses.frames - first] = poses.points[:, 0]
+    points[poses.frames - first] = poses.points[:, 0, :17]  # COCO-17: HALPE-26's first 17
     axes = _Z_UP_TO_Y_UP if up_axis == "y" else None
     return bvh_text(points, poses.fps, scale=1.0 / _UNITS[units], axes=axes)

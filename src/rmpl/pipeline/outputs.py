@@ -79,7 +79,8 @@ def write_all(
     The exports carry each person's height and the view check's per-view status
     (:func:`rmpl.pipeline.report.build_report`). With ``pose2sim`` (an orientation of
     :func:`rmpl.io.pose2sim.write_pose2sim`; None: off) and a frame rate, ``out/pose-3d/``
-    gets one TRC and one C3D per person for Pose2Sim's kinematics (OpenSim scaling + IK), in
+    gets one TRC and one C3D per person for Pose2Sim's kinematics (OpenSim scaling + IK; its
+    COCO_17 or HALPE_26 markers, by the poses' joint set), in
     a world turned so that its up axis (``up``, (3,), else estimated from the cameras) is +z.
     A summary is logged after the commit; a person whose views disagree in most frames gets
     a WARNING banner.
@@ -111,7 +112,13 @@ def write_all(
         out,
     )
     if pose2sim is not None and (out / "pose-3d").is_dir():
-        log.info("Pose2Sim trial files (one TRC + C3D per person): %s", out / "pose-3d")
+        from rmpl.io.pose2sim import POSE_MODELS
+
+        model = POSE_MODELS[poses.skeleton].name if poses.skeleton in POSE_MODELS else "?"
+        log.info(
+            "Pose2Sim trial files (one TRC + C3D per person; Pose2Sim's pose_model %s): %s",
+            model, out / "pose-3d",
+        )  # fmt: skip
     log_summary(report, out)
     if pictures:
         log.info("open %s in a browser to see the result", out / "viewer.html")
@@ -181,15 +188,18 @@ def _export_pose2sim(poses, out: Path, orientation: str, rig, up) -> None:
 
 
 def _pictures(poses, inputs, out: Path, ok: np.ndarray) -> None:
+    from rmpl.skeleton import SKELETONS
     from rmpl.viz.plots import plot_reprojection, plot_skeletons
     from rmpl.viz.viewer import write_viewer
 
+    skeleton = SKELETONS[poses.skeleton]  # the bones of the poses' joint set (feet too)
     write_viewer(poses, out / "viewer.html", cameras=inputs.rig)
-    plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig)
+    plot_skeletons(poses.points, out / "skeleton.png", rig=inputs.rig, skeleton=skeleton)
     busiest = int(np.argmax(ok.sum((1, 2)))) if ok.any() else 0
     person = int(np.argmax(ok[busiest].sum(-1))) if ok.any() else 0
     kp, sc = inputs.keypoints[:, :, 0], inputs.scores[:, :, 0]
     if inputs.keypoints.shape[2] == 1:
         plot_reprojection(
-            kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest
-        )
+            kp, sc, poses.points[:, person], inputs.rig, out / "reprojection.png", frame=busiest,
+            skeleton=skeleton,
+        )  # fmt: skip

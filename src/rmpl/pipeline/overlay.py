@@ -118,6 +118,17 @@ def _legend(image: np.ndarray, scale: float) -> None:
         y -= int(16 * scale)
 
 
+def _skeleton_2d(num_joints: int, skeleton: Skeleton) -> Skeleton:
+    """The detections' joint set: the 3D's when the joint counts match, else COCO-17 for 17
+    joints and HALPE-26 for 26; another count is drawn as dots only."""
+    if num_joints == skeleton.num_joints:
+        return skeleton
+    by_count = {17: "coco17", 26: "halpe26"}
+    if num_joints in by_count:
+        return SKELETONS[by_count[num_joints]]
+    return Skeleton("dots", tuple(f"joint_{j}" for j in range(num_joints)))
+
+
 def _frame_rows(frames: np.ndarray, num_frames: int) -> np.ndarray:
     """Row of each input frame 0..num_frames-1 in ``frames``, -1 where absent."""
     rows = np.full(num_frames, -1)
@@ -138,6 +149,7 @@ def _annotate(
     scores: np.ndarray | None,
     kp_rows: np.ndarray | None,
     skeleton: Skeleton,
+    skeleton_2d: Skeleton,
 ) -> np.ndarray:
     scale = max(1.0, min(image.shape[:2]) / 360)
     thick = max(1, round(2 * scale))
@@ -146,7 +158,7 @@ def _annotate(
             kp = np.where(
                 (scores[kp_rows[t], v, p] > 0)[:, None], keypoints[kp_rows[t], v, p], np.nan
             )
-            draw_skeleton(image, kp, skeleton, DETECTION_COLOR, max(1, thick // 2), thick + 1)
+            draw_skeleton(image, kp, skeleton_2d, DETECTION_COLOR, max(1, thick // 2), thick + 1)
     if pose_rows[t] >= 0:
         uv = project_visible(poses.points[pose_rows[t]], camera)  # (P, J, 2)
         for p in range(uv.shape[0]):
@@ -201,7 +213,8 @@ def write_overlays(
         raise InputError(None, "sources", f"one input per camera ({len(rig)})", len(sources))
     if keypoints is not None:
         keypoints, scores = _checked_keypoints(keypoints, scores, len(rig))
-    skeleton = SKELETONS[poses.skeleton]
+    skeleton = SKELETONS[poses.skeleton]  # the 3D's bones (COCO-17, or HALPE-26 with feet)
+    skeleton_2d = skeleton if keypoints is None else _skeleton_2d(keypoints.shape[-2], skeleton)
     if kind == "videos":
         infos = check_videos(sources)
         num_frames = infos[0].num_frames
@@ -219,7 +232,7 @@ def write_overlays(
     written = []
     for v, camera in enumerate(rig):
         stream = video_frames(infos[v]) if kind == "videos" else image_frames(files[v])
-        args = (camera, poses, pose_rows, keypoints, scores, kp_rows, skeleton)
+        args = (camera, poses, pose_rows, keypoints, scores, kp_rows, skeleton, skeleton_2d)
         target = (out_dir, fps) if kind == "videos" else (out_dir, files[v])
         written.append(_write_camera(stream, v, args, num_frames, target, progress))
     log.info("wrote reprojection overlays to %s", out_dir)
