@@ -211,11 +211,11 @@ def target_lines(rows: list[dict]) -> list[str]:
         for g in ("heels", "big_toes", "small_toes"):
             above = r[f"{g}_mm"] - r["ankles_mm"]
             verdict = "met" if above <= ABOVE_ANKLES_MM else "not met"
-            if not np.isfinite(above):
-                verdict = "not measured"
+            value = f"{above:+.1f} mm" if np.isfinite(above) else "—"
             out.append(
-                f"- 4 views, rmpl {TITLES[g]}: {above:+.1f} mm over the ankles "
-                f"(target <= +{ABOVE_ANKLES_MM:g}): {verdict}"
+                f"- 4 views, rmpl {TITLES[g]}: {value} over the ankles "
+                f"(target <= +{ABOVE_ANKLES_MM:g}): "
+                + (verdict if np.isfinite(above) else "not measured")
             )
     for tri in ("DLT", "robust"):
         if (2, "rmpl") not in by or (2, tri) not in by:
@@ -223,11 +223,11 @@ def target_lines(rows: list[dict]) -> list[str]:
         for g in ("heels", "big_toes"):
             ratio = by[2, "rmpl"][f"{g}_mm"] / by[2, tri][f"{g}_mm"]
             verdict = "met" if ratio <= RATIO_TO_TRIANGULATION else "not met"
-            if not np.isfinite(ratio):
-                verdict = "not measured"
+            value = f"{ratio:.2f}x" if np.isfinite(ratio) else "—"
             out.append(
-                f"- 2 views, rmpl / {tri} {TITLES[g]}: {ratio:.2f}x "
-                f"(target <= {RATIO_TO_TRIANGULATION:g}x): {verdict}"
+                f"- 2 views, rmpl / {tri} {TITLES[g]}: {value} "
+                f"(target <= {RATIO_TO_TRIANGULATION:g}x): "
+                + (verdict if np.isfinite(ratio) else "not measured")
             )
     return out
 
