@@ -258,7 +258,7 @@ def test_group_people_converts_to_coco17_and_drops_small_people():
     people = body25_people(random_people(rng, 2))
     pixels = rig.project(people)[:, 0]
     cands, _ = synthetic_candidates(rng, pixels)
-    kp, sc = group_people(cands, output="coco17")
+    kp, sc = group_people(cands)  # COCO-17
     assert kp.shape == (2, 17, 2) and sc.shape == (2, 17)
     coco_idx = [BODY25.index(n) for n in COCO17.joints]
     for person in kp:
@@ -302,7 +302,7 @@ def test_associate_candidates_end_to_end():
     rig = random_rig(rng, 4)
     pixels = rig.project(body25_people(people))  # (3, 4, 25, 2)
     cands = [synthetic_candidates(rng, pixels[:, v])[0] for v in range(4)]
-    result = associate_candidates(cands, rig, output="coco17")
+    result = associate_candidates(cands, rig)
     assert result.keypoints.shape == (3, 4, 17, 2)
     points = triangulate(result.keypoints, result.scores, rig).points
     match = match_poses(points, people)

@@ -73,7 +73,7 @@ def test_group_people_keeps_body25_feet_neck_mid_hip():
     people = body25_people(random_people(rng, 3))
     pixels = rig.project(people)[:, 0]  # (P, 25, 2)
     cands, _ = synthetic_candidates(rng, pixels)
-    kp, sc = group_people(cands)
+    kp, sc = group_people(cands, output="auto")
     native, native_sc = group_people(cands, output=None)
     assert kp.shape == (3, 26, 2) and sc.shape == (3, 26)
     for j, name in enumerate(HALPE26.joints):
@@ -93,7 +93,7 @@ def test_associate_candidates_carries_feet_to_triangulation():
     pixels = rig.project(people)
     cands = [synthetic_candidates(rng, pixels[:, v])[0] for v in range(4)]
     coco = associate_candidates(cands, rig, output="coco17")
-    rich = associate_candidates(cands, rig)
+    rich = associate_candidates(cands, rig, output="auto")
     assert rich.keypoints.shape == (3, 4, 26, 2)
     np.testing.assert_array_equal(rich.members, coco.members)
     points = triangulate(rich.keypoints, rich.scores, rig).points  # (3, 26, 3)

@@ -163,7 +163,7 @@ def _limb_connections(candidates: Candidates, cfg: GroupingConfig) -> list[tuple
 
 
 def group_people(
-    candidates: Candidates, config: GroupingConfig | None = None, output: str | None = "auto"
+    candidates: Candidates, config: GroupingConfig | None = None, output: str | None = "coco17"
 ) -> tuple[np.ndarray, np.ndarray]:
     """Group one image's part candidates into people with part affinities.
 
@@ -177,11 +177,11 @@ def group_people(
     Args:
         candidates: the image's candidates and affinities.
         config: thresholds; defaults to :class:`GroupingConfig`.
-        output: joint set of the result: ``"auto"`` (default) the richest one the
-            candidates give (:func:`rmpl.io.keypoints.richest`: HALPE-26 for BODY_25, whose
-            neck, mid-hip and feet it keeps; COCO-17 for COCO-17), None
-            ``candidates.skeleton``, or a joint set's name. The grouping itself is the
-            same whatever the output.
+        output: joint set of the result: a joint set's name (default COCO-17), ``"auto"``
+            the richest one the candidates give (:func:`rmpl.io.keypoints.richest`:
+            HALPE-26 for BODY_25, whose neck, mid-hip and feet it keeps, as ``rmpl run``
+            asks), or None for ``candidates.skeleton``. The grouping itself is the same
+            whatever the output.
 
     Returns:
         keypoints, shape (P, J, 2), pixels, NaN where missing; scores, shape (P, J),
@@ -514,7 +514,7 @@ def associate_candidates(
     rig: Rig,
     grouping: GroupingConfig | None = None,
     association: AssociationConfig | None = None,
-    output: str = "auto",
+    output: str = "coco17",
 ) -> Association:
     """Group every view's part candidates (:func:`group_people`), then :func:`associate`.
 
@@ -522,8 +522,9 @@ def associate_candidates(
         candidates: one :class:`Candidates` per camera of ``rig``.
         rig: the V cameras.
         grouping, association: thresholds of the two steps.
-        output: joint set of the result: ``"auto"`` (the richest the candidates give, see
-            :func:`group_people`) or a name in :data:`rmpl.skeleton.SKELETONS`.
+        output: joint set of the result: a name in :data:`rmpl.skeleton.SKELETONS`
+            (default COCO-17) or ``"auto"`` (the richest the candidates give, see
+            :func:`group_people`).
 
     Returns:
         :class:`Association` in the ``output`` joint set (people grouped on its COCO-17

@@ -90,7 +90,7 @@ def _shelf4d_keypoints(root: Path):
 
     data = load_shelf(root)
     groups = [
-        [group_people(c) for c in frame]
+        [group_people(c, output="auto") for c in frame]
         for frame in tqdm(data.detections, desc="grouping", unit="frame")
     ]
     skeleton = richest(data.detections[0][0].skeleton) if data.detections else "coco17"
