@@ -5,10 +5,12 @@ For each input (an rmpl run's ``poses.npz``: the lifter, ``--method triangulate`
 
 1. picks one person: ``--person`` in the first input, the nearest track (mean distance of
    the hip midpoint over shared frames) in the others;
-2. writes that person's Pose2Sim files (:func:`rmpl.io.pose2sim.write_pose2sim`, COCO_17
-   marker names, Pose2Sim's Y-up axes, metres) into ``OUT/<label>-<markerset>/pose-3d/``;
+2. writes that person's Pose2Sim files (:func:`rmpl.io.pose2sim.write_pose2sim`: COCO_17
+   marker names for COCO-17 poses, HALPE_26 ones (with heels and toes) for HALPE-26 poses;
+   Pose2Sim's Y-up axes, metres) into ``OUT/<label>-<markerset>/pose-3d/``;
 3. runs ``Pose2Sim.kinematics()`` there in the OpenSim venv (scripts/setup_opensim.sh):
-   pose model ``COCO_17``, no marker augmentation, the participant's height and mass;
+   the pose model the TRC's markers name (``HALPE_26`` when it has ``LHeel``, else
+   ``COCO_17``), no marker augmentation, the participant's height and mass;
 4. reads OpenSim's outputs: the IK marker error of every frame (``_ik_marker_errors.sto``,
    RMS over markers and the largest marker error) and the joint angles (``.mot``).
 
@@ -22,7 +24,8 @@ installed. In Pose2Sim 0.10.49 its ``RHip`` sits on the pelvis at (-0.005, -0.39
 the left knee marker's femur coordinates, 0.4 m below the hip joint, while ``LHip`` is at
 (-0.064, -0.081, -0.105) m as in every other Pose2Sim marker set; ``fixed`` runs the same
 setup with ``RHip`` at ``LHip`` mirrored (z -> -z), written into a copy of the setup folder
-(the installed package is not changed).
+(the installed package is not changed). ``Markers_Halpe26.xml`` has ``RHip`` right, so for
+HALPE-26 poses both marker sets are the same (give ``--markerset shipped``).
 
 Joint-angle plausibility: the share of frames in which a hip, knee or elbow angle lies
 outside the normal range of motion of the American Academy of Orthopaedic Surgeons (Greene
@@ -33,7 +36,9 @@ flexion 135 (extension 0, with 10 degrees of hyperextension allowed); elbow flex
 [-45, 30], hip_rotation in [-45, 45], knee_angle in [-10, 135], elbow_flex in [-10, 150].
 The model clamps its coordinates (knee 0-155, elbow 0-150, hip flexion -50-150, adduction
 -60-30, rotation -70-40), so IK cannot go beyond those. Without heels and toes the ankle,
-subtalar and MTP angles are not driven (they stay 0) and are not scored.
+subtalar and MTP angles are not driven (they stay 0) and are not scored; with HALPE_26's heel
+and toe markers they are, and ``ankle_range`` / ``subtalar_range`` / ``mtp_range`` report
+their ranges over the trial (degrees, both sides).
 
 Smoothness: the RMS angular acceleration of the knee, hip flexion and elbow angles, second
 differences times fps squared, degrees / s^2 (lower is smoother).
@@ -43,6 +48,9 @@ Usage (rmpl's venv; the OpenSim venv from scripts/setup_opensim.sh)::
     python scripts/opensim_ik.py --poses rmpl=demo_rmpl/poses.npz \\
         triangulate=demo_triangulate/poses.npz robust=demo_robust/poses.npz \\
         --person 0 --out ik_demo/ [--height 1.75] [--mass 70] [--markerset both]
+
+The inputs may mix joint sets (a HALPE-26 lifter beside COCO-17 triangulation): each is
+written and solved with its own pose model.
 
 It prints a markdown table and writes ``OUT/results.json``. A finished input is not run
 again (``OUT/<label>-<markerset>/result.json``); ``--force`` runs it anew.
@@ -80,8 +88,21 @@ SMOOTH = ("knee_angle", "hip_flexion", "elbow_flex")
 # --------------------------------------------------------------------------- the OpenSim side
 
 
+def trc_pose_model(project: Path) -> str:
+    """Pose2Sim's pose model for the TRC files of ``project/pose-3d``, by their markers:
+    ``HALPE_26`` when they have heels (rmpl writes them for HALPE-26 poses), else
+    ``COCO_17``."""
+    names: set[str] = set()
+    for trc in sorted((project / "pose-3d").glob("*.trc")):
+        with open(trc, encoding="utf-8") as f:
+            header = [next(f) for _ in range(4)]
+        names |= {m.strip() for m in header[3].split("\t")[2:] if m.strip()}
+    return "HALPE_26" if {"LHeel", "RHeel", "Head"} <= names else "COCO_17"
+
+
 def worker(project: Path, height: float, mass: float, markerset: str, augment: bool) -> None:
-    """In the OpenSim venv: Pose2Sim's kinematics on ``project/pose-3d/*.trc``."""
+    """In the OpenSim venv: Pose2Sim's kinematics on ``project/pose-3d/*.trc``, with the pose
+    model their markers name (:func:`trc_pose_model`)."""
     import Pose2Sim.kinematics as kin
     from Pose2Sim import Pose2Sim
 
@@ -94,7 +115,7 @@ def worker(project: Path, height: float, mass: float, markerset: str, augment: b
             "participant_height": height,
             "participant_mass": mass,
         },
-        "pose": {"pose_model": "COCO_17"},
+        "pose": {"pose_model": trc_pose_model(project)},
         "kinematics": {"use_augmentation": False, "parallel_workers_kinematics": False},
     }
     if augment:  # the LSTM marker augmenter: record what it does without feet
@@ -154,15 +175,16 @@ def _fixed_setup(project: Path) -> Path:
 def pick_people(inputs: dict[str, Path], person: int | None):
     """One person's track per input: ``person`` (or the most complete one) in the first
     input, the track nearest to it in the others. Returns {label: one-person Poses3D}."""
-    from rmpl.io.pose2sim import POSE2SIM_MARKERS, marker_points, select_frames
+    from rmpl.io.pose2sim import marker_points, pose_model, select_frames
     from rmpl.io.poses import Poses3D, load_poses
 
-    hip_index = list(POSE2SIM_MARKERS).index("Hip")
     picked, ref = {}, None
     for label, path in inputs.items():
         poses = load_poses(path)
-        mk = marker_points(poses.points, poses.joint_names)  # (T, P, M, 3)
-        complete = [len(select_frames(mk[:, p], "complete")[0]) for p in range(mk.shape[1])]
+        model = pose_model(poses.skeleton, path)
+        hip_index = list(model.markers).index("Hip")
+        mk = marker_points(poses.points, poses.joint_names, model.markers, model.fallbacks)
+        complete = [len(select_frames(mk[:, p], "complete", model)[0]) for p in range(mk.shape[1])]
         if ref is None:
             ids = poses.person_ids.tolist()
             if person is None:
@@ -250,6 +272,14 @@ def metrics(project: Path, stem: str, fps: float) -> dict:
             float(max(angles["knee_angle_r"].max(), angles["knee_angle_l"].max())),
         ],
         ankle_driven=bool(np.any(angles["ankle_angle_r"] != 0)),
+        **{
+            f"{c}_range": [
+                float(min(angles[f"{c}_angle_r"].min(), angles[f"{c}_angle_l"].min())),
+                float(max(angles[f"{c}_angle_r"].max(), angles[f"{c}_angle_l"].max())),
+            ]
+            for c in ("ankle", "subtalar", "mtp")
+            if f"{c}_angle_r" in angles
+        },
     )
 
 
@@ -313,7 +343,7 @@ def angle_errors(project: Path, stem: str, truth: Path, truth_stem: str) -> dict
 
 
 def run_one(label, one, markerset, args, height, python, truth: bool = False) -> dict:
-    from rmpl.io.pose2sim import write_pose2sim
+    from rmpl.io.pose2sim import pose_model, write_pose2sim
 
     project = args.out / f"{label}-{markerset}"
     done = project / "result.json"
@@ -348,6 +378,7 @@ def run_one(label, one, markerset, args, height, python, truth: bool = False) ->
     result = dict(
         label=label,
         markerset=markerset,
+        pose_model=pose_model(one.skeleton).name,
         trc=str(trc),
         c3d=str(c3d),
         height=height,
@@ -384,6 +415,20 @@ def table(results: list[dict]) -> str:
             f"| {r['knee_range'][0]:.0f} to {r['knee_range'][1]:.0f} "
             f"| {a['knee_angle']:.0f} / {a['hip_flexion']:.0f} / {a['elbow_flex']:.0f} |"
         )
+    feet = [r for r in results if "subtalar_range" in r]
+    if feet:
+        rows += [
+            "",
+            "| input | marker set | pose model | ankle range (deg) | subtalar range | MTP range |",
+            "|---|---|---|---|---|---|",
+        ]
+        for r in feet:
+            a, s_, m = r["ankle_range"], r["subtalar_range"], r["mtp_range"]
+            rows.append(
+                f"| {r['label']} | {r['markerset']} | {r.get('pose_model', '-')} "
+                f"| {a[0]:.0f} to {a[1]:.0f} | {s_[0]:.0f} to {s_[1]:.0f} "
+                f"| {m[0]:.0f} to {m[1]:.0f} |"
+            )
     compared = [r for r in results if "vs_truth" in r]
     if compared:
         rows += [
@@ -433,6 +478,7 @@ def main(argv: list[str] | None = None) -> int:
         if not path or not Path(path).is_file():
             ap.error(f"--poses {item}: expected LABEL=path/to/poses.npz (an existing file)")
         inputs[label] = Path(path)
+    args.out = args.out.resolve()  # the worker runs in the project folder
     args.out.mkdir(parents=True, exist_ok=True)
     picked = pick_people(inputs, args.person)
     first = next(iter(picked.values()))

@@ -25,8 +25,10 @@ Markers (COCO-17 poses, ``COCO_17``)
     markers that have no IK task (eyes, ears, ``Hip``), which are written for viewers and
     for Pose2Sim's height estimate (it uses ``Hip``).
 Markers (HALPE-26 poses, ``HALPE_26``)
-    One marker per joint, no midpoints: the lifter's own ``mid_hip``, ``neck`` and
-    ``head_top`` are ``Hip``, ``Neck`` and ``Head``. In the order of Pose2Sim's ``HALPE_26``
+    One marker per joint: the lifter's own ``mid_hip``, ``neck`` and ``head_top`` are
+    ``Hip``, ``Neck`` and ``Head``; where ``mid_hip`` is missing (triangulated 2D without
+    it, e.g. OpenPose BODY_25B), ``Hip`` is the midpoint of the hips, as rmpl defines
+    ``mid_hip`` (:data:`HALPE26_FALLBACKS`). In the order of Pose2Sim's ``HALPE_26``
     tree: ``Hip RHip RKnee RAnkle RBigToe RSmallToe RHeel LHip LKnee LAnkle LBigToe
     LSmallToe LHeel Neck Head Nose``, then ``REye LEye REar LEar`` (HALPE-26 has them;
     Pose2Sim's tree leaves them out and OpenSim ignores them), then ``RShoulder RElbow
@@ -94,6 +96,7 @@ from rmpl.io.atomic import atomic_path
 from rmpl.io.poses import Poses3D
 
 __all__ = [
+    "HALPE26_FALLBACKS",
     "HALPE26_IK_MARKERS",
     "HALPE26_MARKERS",
     "IK_MARKERS",
@@ -185,6 +188,10 @@ HALPE26_MARKERS: dict[str, tuple[str, ...]] = {
     "LWrist": ("left_wrist",),
 }
 
+#: HALPE_26 markers taken from other joints where their own is missing: the mid-hip is the
+#: midpoint of the hips by definition (rmpl.synth.body).
+HALPE26_FALLBACKS: dict[str, tuple[str, ...]] = {"Hip": ("left_hip", "right_hip")}
+
 #: The markers of Pose2Sim's ``Markers_Halpe26.xml`` (the ones its IK and scaling use).
 HALPE26_IK_MARKERS: tuple[str, ...] = (
     "Nose",
@@ -220,17 +227,20 @@ class PoseModel:
         name: Pose2Sim's ``pose_model`` (its Config.toml ``[pose]`` key).
         markers: marker name -> the rmpl joints it is the mean of, in the file's order.
         ik_markers: the markers its IK and scaling use (its ``Markers_*.xml``).
+        fallbacks: marker name -> the joints whose mean stands in where ``markers``'
+            joints are missing.
     """
 
     name: str
     markers: dict[str, tuple[str, ...]]
     ik_markers: tuple[str, ...]
+    fallbacks: dict[str, tuple[str, ...]] = dataclasses.field(default_factory=dict)
 
 
 #: rmpl joint set -> Pose2Sim's pose model for it.
 POSE_MODELS: dict[str, PoseModel] = {
     "coco17": PoseModel("COCO_17", POSE2SIM_MARKERS, IK_MARKERS),
-    "halpe26": PoseModel("HALPE_26", HALPE26_MARKERS, HALPE26_IK_MARKERS),
+    "halpe26": PoseModel("HALPE_26", HALPE26_MARKERS, HALPE26_IK_MARKERS, HALPE26_FALLBACKS),
 }
 
 
@@ -253,6 +263,7 @@ def marker_points(
     points: np.ndarray,
     joints: tuple[str, ...],
     markers: dict[str, tuple[str, ...]] = POSE2SIM_MARKERS,
+    fallbacks: dict[str, tuple[str, ...]] | None = None,
 ) -> np.ndarray:
     """rmpl joints -> Pose2Sim markers.
 
@@ -260,6 +271,7 @@ def marker_points(
         points: joints in any units, shape (*, J, 3), NaN = missing; ``joints`` names the J.
         joints: the joint names of ``points`` (rmpl's COCO-17 or HALPE-26 names).
         markers: the pose model's markers (:attr:`PoseModel.markers`; default COCO_17's).
+        fallbacks: :attr:`PoseModel.fallbacks`: stand-ins where a marker is missing.
 
     Returns:
         Markers, shape (*, M, 3), in the order of ``markers``; a derived marker (COCO_17's
@@ -272,8 +284,11 @@ def marker_points(
     """
     index = {name: i for i, name in enumerate(joints)}
     out = np.empty((*points.shape[:-2], len(markers), 3))
-    for m, sources in enumerate(markers.values()):
+    for m, (name, sources) in enumerate(markers.items()):
         out[..., m, :] = points[..., [index[s] for s in sources], :].mean(-2)  # NaN stays NaN
+        if fallbacks and name in fallbacks:
+            other = points[..., [index[s] for s in fallbacks[name]], :].mean(-2)
+            out[..., m, :] = np.where(np.isnan(out[..., m, :]), other, out[..., m, :])
     return out
 
 
@@ -379,7 +394,7 @@ def write_pose2sim(
     if "c3d" in formats and poses.frames[0] < 0:
         raise InputError(folder, "frames", "frame numbers >= 0 for C3D", int(poses.frames[0]))
 
-    markers = marker_points(poses.points, poses.joint_names, model.markers)  # (T, P, M, 3)
+    markers = marker_points(poses.points, poses.joint_names, model.markers, model.fallbacks)
     names = tuple(model.markers)
     ik = ", ".join(model.ik_markers)
     files: list[tuple[Path, str, object]] = []
