@@ -29,6 +29,20 @@ Accuracy: the proportions are population means; individuals vary by a few per ce
 COCO-17 hip and shoulder keypoints of a detector are not exactly the trochanter and the
 acromion. Read the value as an estimate to +-5%, not a measurement.
 
+With HALPE-26 joints (the lifter's head top and feet) two more spans are measured instead of
+taken from the proportions, each only when seen in ``min_frames`` frames:
+
+- **crown**: mid-shoulder to ``head_top``, standing for the shoulder-to-vertex span (0.182 H);
+- **ankle height**: the distance of the ankle from the plane through the same foot's heel,
+  big toe and small toe (the sole, flat on the floor when standing), per side, standing for
+  the ankle's height above the floor (0.039 H). Both are posture-independent (rigid head
+  and foot), as the bone lengths are.
+
+The height is then the measured spans over the fraction of H they cover: ``(shank + thigh +
+trunk + crown + ankle) / 1.0`` with both, ``/ 0.961`` with the crown alone, ``/ 0.818`` with
+the ankle alone, ``/ 0.779`` with neither (COCO-17). :func:`bone_lengths` lists them as
+``crown``, ``left_ankle_height`` and ``right_ankle_height``.
+
 Shape glossary: ``T`` frames, ``J`` joints. Metres.
 """
 
@@ -39,7 +53,13 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.skeleton import SKELETONS
 
-__all__ = ["HEIGHT_FRACTIONS", "CHAIN_FRACTION", "bone_lengths", "estimate_height"]
+__all__ = [
+    "HEIGHT_FRACTIONS",
+    "CHAIN_FRACTION",
+    "EXTRA_FRACTIONS",
+    "bone_lengths",
+    "estimate_height",
+]
 
 #: Segment lengths as fractions of standing height (Drillis & Contini 1966, in Winter 2009,
 #: Fig. 4.1): shank = knee 0.285 - ankle 0.039, thigh = hip 0.530 - knee 0.285,
@@ -51,6 +71,9 @@ HEIGHT_FRACTIONS: dict[str, float] = {
 }
 #: The fraction of the height spanned by shank + thigh + trunk (0.779).
 CHAIN_FRACTION = sum(HEIGHT_FRACTIONS.values())
+#: The spans measured when the joints are there (HALPE-26): shoulder (0.818) to the vertex
+#: (1.0), and the ankle's height (0.039).
+EXTRA_FRACTIONS: dict[str, float] = {"crown": 1.0 - 0.818, "ankle": 0.039}
 
 # Each measured bone: (segment, ends). An end is one joint name or a pair whose midpoint
 # is used (the trunk runs from mid-hip to mid-shoulder).
@@ -61,6 +84,9 @@ _BONES: dict[str, tuple[str, tuple, tuple]] = {
     "right_thigh": ("thigh", ("right_hip",), ("right_knee",)),
     "trunk": ("trunk", ("left_hip", "right_hip"), ("left_shoulder", "right_shoulder")),
 }
+_CROWN = ("crown", ("left_shoulder", "right_shoulder"), ("head_top",))
+_FEET = {side: (f"{side}_ankle", f"{side}_heel", f"{side}_big_toe", f"{side}_small_toe")
+         for side in ("left", "right")}  # fmt: skip
 
 
 def _checked(points, skeleton: str) -> np.ndarray:
@@ -98,8 +124,10 @@ def bone_lengths(points: np.ndarray, skeleton: str = "coco17") -> dict[str, tupl
 
     Returns:
         ``{bone: (median length in metres, number of frames with both ends)}`` for
-        left_shank, right_shank, left_thigh, right_thigh and trunk; the length is NaN when
-        no frame has both ends.
+        left_shank, right_shank, left_thigh, right_thigh and trunk, and, when the joint set
+        has them (HALPE-26), crown (mid-shoulder to head top) and left/right_ankle_height
+        (the ankle's distance from the plane of heel, big toe and small toe); the length is
+        NaN when no frame has both ends.
 
     >>> pts = np.full((2, 17, 3), np.nan)
     >>> pts[:, 13], pts[:, 15] = [0, 0, 0.5], [0, 0, 0.1]  # left knee, left ankle
@@ -113,7 +141,24 @@ def bone_lengths(points: np.ndarray, skeleton: str = "coco17") -> dict[str, tupl
         d = np.linalg.norm(_end(x, a, skeleton) - _end(x, b, skeleton), axis=-1)
         ok = np.isfinite(d)
         out[bone] = (float(np.median(d[ok])) if ok.any() else float("nan"), int(ok.sum()))
+    names = set(SKELETONS[skeleton].joints)
+    if set(_CROWN[2]) <= names:
+        out["crown"] = _median(
+            np.linalg.norm(_end(x, _CROWN[2], skeleton) - _end(x, _CROWN[1], skeleton), axis=-1)
+        )
+    for side, joints in _FEET.items():
+        if set(joints) <= names:
+            ankle, heel, big, small = (_end(x, (j,), skeleton) for j in joints)
+            normal = np.cross(big - heel, small - heel)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+            out[f"{side}_ankle_height"] = _median(np.abs(((ankle - heel) * normal).sum(-1)))
     return out
+
+
+def _median(d: np.ndarray) -> tuple[float, int]:
+    ok = np.isfinite(d)
+    return (float(np.median(d[ok])) if ok.any() else float("nan"), int(ok.sum()))
 
 
 def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: int = 5) -> float:
@@ -128,7 +173,8 @@ def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: in
     Returns:
         The estimated height in metres, ``(shank + thigh + trunk) / 0.779`` with each
         segment's median length over the track (shank and thigh: the mean of the sides
-        that count).
+        that count); with HALPE-26's head top and feet seen, the crown and the ankle height
+        are measured too (see the module docstring).
 
     Raises:
         InputError: ``points`` is not (T, J, 3) for ``skeleton``, or the track has too
@@ -162,4 +208,12 @@ def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: in
             "for a height",
             f"frames per bone: {seen}",
         )
-    return sum(float(np.mean(v)) for v in segment.values()) / CHAIN_FRACTION
+    total = sum(float(np.mean(v)) for v in segment.values())
+    fraction = CHAIN_FRACTION
+    extra = {"crown": ["crown"], "ankle": ["left_ankle_height", "right_ankle_height"]}
+    for part, bones in extra.items():
+        seen = [lengths[b][0] for b in bones if b in lengths and lengths[b][1] >= min_frames]
+        if seen:
+            total += float(np.mean(seen))
+            fraction += EXTRA_FRACTIONS[part]
+    return total / fraction
