@@ -22,7 +22,7 @@ def register(parser: argparse.ArgumentParser) -> None:
         "--fps",
         type=float,
         default=None,
-        help="frames kept per second (default 10; with --sequences 60)",
+        help="frames kept per second (default 10; with --sequences 60, or 30 with --body anny)",
     )
     parser.add_argument(
         "--sequences",
@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
 
     if not str(args.out).endswith(".npz"):
         raise InputError(args.out, None, "an output path ending in .npz")
-    fps = args.fps if args.fps is not None else (60.0 if args.sequences else 10.0)
+    seq_fps = 30.0 if args.body == "anny" else 60.0
+    fps = args.fps if args.fps is not None else (seq_fps if args.sequences else 10.0)
     if not fps > 0:
         raise InputError(None, "--fps", "a frame rate > 0", fps)
     if not Path(args.motion).is_dir():
@@ -64,9 +65,17 @@ def run(args: argparse.Namespace) -> int:
                  minutes, fps)  # fmt: skip
         return 0
     args.fps = fps
+    if args.body == "anny" and args.sequences:
+        from rmpl.data.sequences import anny_sequence_bank
+        from rmpl.synth.body import BodyModel
+
+        seq = anny_sequence_bank(args.motion, BodyModel(joints="halpe26"), fps=fps, progress=True)
+        seq.save(args.out)
+        minutes = len(seq.poses) / fps / 60
+        log.info("wrote %s: %d segments on anny bodies (HALPE-26), %.1f minutes at %g frames/s",
+                 args.out, len(seq), minutes, fps)  # fmt: skip
+        return 0
     if args.body == "anny":
-        if args.sequences:
-            raise InputError(None, "--body", "mocap with --sequences", "anny")
         from rmpl.synth.body import BodyModel
         from rmpl.synth.retarget import anny_pose_set, build_pose_bank
 

@@ -29,7 +29,7 @@ from rmpl.data.synthetic import Batch
 from rmpl.errors import InputError
 from rmpl.geometry.camera import rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import SKELETONS, embed, embed_scores
 
 __all__ = ["load_mhp", "load_mhp_sequences", "ShardSource", "SequenceShardSource", "MixSource"]
 
@@ -40,6 +40,7 @@ def load_mhp(
     root: str | Path,
     subjects: Sequence[str] | None = None,
     exclude_subjects: Sequence[str] = (),
+    joints: str | None = None,
 ) -> dict[str, np.ndarray]:
     """Read an MHP directory (every finished shard) into arrays.
 
@@ -47,9 +48,11 @@ def load_mhp(
         root: a directory written by ``rmpl generate`` (``manifest.json`` + shards).
         subjects: keep only meshes posed from these motion subjects (None = all).
         exclude_subjects: drop meshes of these subjects (a held-out split).
+        joints: the joint set to return (``"coco17"`` or ``"halpe26"``; None: as the set
+            was made). COCO-17 sets read as HALPE-26 have the other nine joints missing.
 
     Returns:
-        ``joints3d`` (M, 17, 3) metres, ``keypoints`` (M, V, 17, 2) pixels (NaN where the
+        ``joints3d`` (M, J, 3) metres, ``keypoints`` (M, V, 17, 2) pixels (NaN where the
         score is 0), ``scores`` (M, V, 17), ``K`` (M, V, 3, 3), ``R`` (M, V, 3, 3),
         ``t`` (M, V, 3), ``size`` (M, V, 2), ``subject``, ``clip``, ``frame`` (M,), and
         ``projected`` (M, V, 17, 2) when present.
@@ -60,12 +63,35 @@ def load_mhp(
     from rmpl.synth.generate import FORMAT
 
     return _load(root, FORMAT, (*_ARRAYS, "projected"), ("projected",), subjects,
-                 exclude_subjects, "meshes")  # fmt: skip
+                 exclude_subjects, "meshes", joints)  # fmt: skip
 
 
-def _load(root, fmt: str, keys, optional, subjects, exclude_subjects, what: str) -> dict:
+_JOINT_SETS = ("coco17", "halpe26")
+#: Arrays with a joint axis (the one before last for points, the last for scores).
+_JOINT_POINTS, _JOINT_VALUES = ("joints3d", "keypoints", "projected"), ("scores",)
+
+
+def _in_joint_set(d: dict, stored: str, joints: str) -> dict:
+    """A set's arrays in another joint set: HALPE-26 -> COCO-17 keeps the first 17 joints;
+    COCO-17 -> HALPE-26 leaves the nine others missing (NaN targets, score 0)."""
+    if joints not in _JOINT_SETS:
+        raise ValueError(f"joints must be one of {_JOINT_SETS}, got {joints!r}")
+    out = dict(d)
+    for k in _JOINT_POINTS:
+        if k in d:
+            out[k] = embed(d[k], stored, joints).astype(d[k].dtype)
+    for k in _JOINT_VALUES:
+        if k in d:
+            out[k] = embed_scores(d[k], stored, joints).astype(d[k].dtype)
+    return out
+
+
+def _load(
+    root, fmt: str, keys, optional, subjects, exclude_subjects, what: str, joints=None
+) -> dict:
     """The arrays ``keys`` of every finished shard of ``root`` (manifest format ``fmt``),
-    concatenated, the subject selection applied, keypoints NaN where the score is 0."""
+    concatenated, the subject selection applied, in joint set ``joints`` (None: as stored),
+    keypoints NaN where the score is 0."""
     from rmpl.synth.generate import FORMAT, SEQUENCE_FORMAT, list_shards
 
     root = Path(root)
@@ -79,8 +105,9 @@ def _load(root, fmt: str, keys, optional, subjects, exclude_subjects, what: str)
             SEQUENCE_FORMAT: " (a sequence set: read it with load_mhp_sequences)",
         }.get(meta.get("format"), "")
         raise InputError(manifest, "format", repr(fmt), f"{meta.get('format')!r}{hint}")
-    if meta.get("joints") != list(COCO17.joints):
-        raise InputError(manifest, "joints", "COCO-17", meta.get("joints"))
+    stored = next((k for k in _JOINT_SETS if meta.get("joints") == list(SKELETONS[k].joints)), None)
+    if stored is None:
+        raise InputError(manifest, "joints", "COCO-17 or HALPE-26", meta.get("joints"))
     shards = list_shards(root)
     if not shards:
         raise InputError(root, None, "finished shards (shard_*.npz)", "none")
@@ -105,6 +132,8 @@ def _load(root, fmt: str, keys, optional, subjects, exclude_subjects, what: str)
             sorted(set(d["subject"].tolist())),
         )
     d = {k: v[keep] for k, v in d.items()}
+    if joints is not None and joints != stored:
+        d = _in_joint_set(d, stored, joints)
     missed = d["scores"] <= 0
     d["keypoints"] = np.where(missed[..., None], np.nan, d["keypoints"]).astype(np.float32)
     return d
@@ -133,6 +162,7 @@ def load_mhp_sequences(
     root: str | Path,
     subjects: Sequence[str] | None = None,
     exclude_subjects: Sequence[str] = (),
+    joints: str | None = None,
 ) -> dict[str, np.ndarray]:
     """Read an MHP sequence directory (``rmpl generate`` with ``sequence_frames >= 2``).
 
@@ -156,7 +186,7 @@ def load_mhp_sequences(
     from rmpl.synth.generate import SEQUENCE_FORMAT
 
     return _load(root, SEQUENCE_FORMAT, _SEQUENCE_KEYS, (), subjects, exclude_subjects,
-                 "sequences")  # fmt: skip
+                 "sequences", joints)  # fmt: skip
 
 
 def _pad_views(part: dict[str, np.ndarray], key: str, width: int) -> np.ndarray:
@@ -208,6 +238,8 @@ class ShardSource:
             so the 2D keypoints stay exact).
         shift: see ``augment``, metres.
         seed: random seed.
+        joints: the joint set of the batches (see :func:`load_mhp`); None: the sets' own
+            (they must then agree).
     """
 
     def __init__(
@@ -219,9 +251,12 @@ class ShardSource:
         augment: bool = True,
         shift: float = 1.0,
         seed: int | None = None,
+        joints: str | None = None,
     ) -> None:
         roots = [root] if isinstance(root, str | Path) else list(root)
-        parts = [load_mhp(r, subjects, exclude_subjects) for r in roots]
+        parts = [load_mhp(r, subjects, exclude_subjects, joints) for r in roots]
+        if len({p["joints3d"].shape[1] for p in parts}) > 1:
+            raise InputError(", ".join(map(str, roots)), "joints", "one joint set", "several")
         # Directories may have different numbers of views per mesh: pad to the largest
         # with empty views (score 0, identity camera) that sampling never picks.
         width = max(p["scores"].shape[1] for p in parts)
@@ -328,6 +363,7 @@ class SequenceShardSource:
             the 2D keypoints stay exact), and start its clock at a random time (0-100 s).
         shift: see ``augment``, metres.
         seed: random seed.
+        joints: the joint set of the batches (see :func:`load_mhp`).
     """
 
     def __init__(
@@ -339,9 +375,10 @@ class SequenceShardSource:
         augment: bool = True,
         shift: float = 1.0,
         seed: int | None = None,
+        joints: str | None = None,
     ) -> None:
         roots = [root] if isinstance(root, str | Path) else list(root)
-        parts = [load_mhp_sequences(r, subjects, exclude_subjects) for r in roots]
+        parts = [load_mhp_sequences(r, subjects, exclude_subjects, joints) for r in roots]
         shape = parts[0]["scores"].shape[1:3]  # (T, V)
         for r, p in zip(roots, parts, strict=True):
             if p["scores"].shape[1:3] != shape:

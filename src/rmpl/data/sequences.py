@@ -29,10 +29,16 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import project, rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.io.atomic import atomic_path
-from rmpl.skeleton import COCO17
-from rmpl.synth.noise import NoiseConfig, detect_like
+from rmpl.skeleton import COCO17, HALPE26
+from rmpl.synth.noise import INPUT_SETS, NoiseConfig, detect_like, input_joint_sets, joint_sigmas
 
-__all__ = ["SequenceBank", "SequenceBatch", "SequenceSource", "TemporalNoise"]
+__all__ = [
+    "SequenceBank",
+    "SequenceBatch",
+    "SequenceSource",
+    "TemporalNoise",
+    "anny_sequence_bank",
+]
 
 log = logging.getLogger(__name__)
 
@@ -147,6 +153,11 @@ class SequenceBank:
 def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
     """The clip's usable stretches as COCO-17 at ``fps``, floor at z = 0, cut where a joint
     moves faster than :data:`MAX_JOINT_SPEED` (capture glitches, rest-pose blends)."""
+    return [seg for seg, _ in _clean_segment_frames(motion, fps, min_seconds)]
+
+
+def _clean_segment_frames(motion, fps: float, min_seconds: float):
+    """:func:`_clean_segments`, each with its fractional source frames: [(seg, t)]."""
     from rmpl.synth import motion as M
 
     keep = M.usable_frames(motion, min_seconds)
@@ -164,17 +175,92 @@ def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
         i0 = np.floor(t).astype(int).clip(a, b - 1)
         i1 = np.minimum(i0 + 1, b - 1)
         w = (t - i0)[:, None, None]
-        out += _continuous((1 - w) * joints[i0] + w * joints[i1], fps, min_seconds)
+        out += _continuous((1 - w) * joints[i0] + w * joints[i1], t, fps, min_seconds)
     return out
 
 
-def _continuous(seg: np.ndarray, fps: float, min_seconds: float) -> list[np.ndarray]:
-    """``seg`` (T, J, 3) cut at every frame where a joint jumps, pieces shorter than
-    ``min_seconds`` dropped."""
+def _continuous(seg: np.ndarray, t: np.ndarray, fps: float, min_seconds: float):
+    """``seg`` (T, J, 3) and its source frames ``t`` (T,) cut at every frame where a joint
+    jumps, pieces shorter than ``min_seconds`` dropped: [(seg, t)]."""
     speed = np.linalg.norm(np.diff(seg, axis=0), axis=-1).max(-1) * fps  # (T - 1,)
     cuts = np.flatnonzero(speed > MAX_JOINT_SPEED) + 1
-    parts = np.split(seg, cuts)
-    return [p for p in parts if (len(p) - 1) / fps >= min_seconds]
+    parts = zip(np.split(seg, cuts), np.split(t, cuts), strict=True)
+    return [(p, q) for p, q in parts if (len(p) - 1) / fps >= min_seconds]
+
+
+def anny_sequence_bank(
+    root: str | Path,
+    body_model,
+    fps: float = 30.0,
+    min_seconds: float = 1.0,
+    seed: int = 0,
+    batch: int = 256,
+    progress: bool = False,
+) -> SequenceBank:
+    """The segments of :meth:`SequenceBank.from_motion_dir`, each retargeted onto one random
+    anny body (a track keeps its body), with ``body_model``'s joints (HALPE-26 from
+    ``BodyModel(joints="halpe26")``: the same mesh definitions as the MHP renders).
+
+    Each frame takes the mocap's rotations at its nearest source frame; the body's mid-hip
+    follows the mocap's, scaled by the ratio of leg lengths (as ``rmpl generate`` moves its
+    sequences); the segment's lowest vertex stands on the floor (z = 0).
+    """
+    from rmpl.synth import motion as M
+    from rmpl.synth.body import sample_phenotypes
+    from rmpl.synth.generate import _leg_length
+    from rmpl.synth.retarget import anny_deltas, bone_parents, mocap_drivers, reference_heads
+
+    rng = np.random.default_rng(seed)
+    clips = [c for c in M.find_clips(root) if not M._matches(c.clip, M.BROKEN_CLIPS)]
+    if not clips:
+        raise InputError(root, None, "some .amc or .bvh files", "none")
+    parents = bone_parents(body_model)
+    skeletons: dict = {}
+    poses, starts, lengths, subjects, n = [], [], [], [], 0
+    if progress:
+        from tqdm import tqdm
+
+        clips = tqdm(clips, desc="anny sequences", unit="clip")
+    for clip in clips:
+        motion = M._load_clip(clip, skeletons)
+        segments = _clean_segment_frames(motion, fps, min_seconds)
+        if not segments:
+            continue
+        rot, dirs = mocap_drivers(motion)
+        for mocap, t in segments:
+            phen = sample_phenotypes(1, rng)
+            ref = reference_heads(body_model, phen)
+            src = np.clip(np.rint(t).astype(int), 0, len(rot) - 1)
+            joints, floor = [], np.inf
+            for i in range(0, len(src), batch):
+                rows = src[i : i + batch]
+                deltas = anny_deltas(rot[rows].astype(float), dirs.astype(float),
+                                     np.repeat(ref, len(rows), 0), body_model.bone_names,
+                                     parents)  # fmt: skip
+                bodies = body_model(deltas, np.repeat(phen, len(rows), 0))
+                joints.append(bodies.keypoints.astype(float))
+                floor = min(floor, float(bodies.vertices[..., 2].min()))
+            joints = np.concatenate(joints)
+            scale = _leg_length(joints) / max(_leg_length(mocap), 1e-6)
+            path = scale * mocap[:, 11:13].mean(1)
+            shift = path - joints[:, 11:13].mean(1)  # (T, 3): the body's mid-hip on the path
+            shift[:, 2] = 0.0
+            joints = joints + shift[:, None]
+            joints[..., 2] -= floor
+            poses.append(joints.astype(np.float32))
+            starts.append(n)
+            lengths.append(len(joints))
+            subjects.append(clip.subject)
+            n += len(joints)
+    if not poses:
+        raise InputError(root, None, f"clean motion of at least {min_seconds} s", "none")
+    return SequenceBank(
+        np.concatenate(poses),
+        np.array(starts, np.int64),
+        np.array(lengths, np.int64),
+        np.array(subjects, str),
+        float(fps),
+    )
 
 
 @dataclass(frozen=True)
@@ -256,6 +342,8 @@ class SequenceSource:
         temporal: the temporal detector model.
         camera_preset: random camera setup preset; room: half-extent of the floor area.
         seed: random seed.
+        input_sets: with HALPE-26 motion, how often each kind of detector draws a window
+            (see :class:`rmpl.data.synthetic.SamplerConfig`).
     """
 
     def __init__(
@@ -267,6 +355,12 @@ class SequenceSource:
         room: float = 2.0,
         scale_range: tuple[float, float] = (0.88, 1.22),
         seed: int | None = None,
+        input_sets: tuple[tuple[str, float], ...] = (
+            ("coco17", 0.4),
+            ("blazepose", 0.2),
+            ("body25", 0.2),
+            ("halpe26", 0.2),
+        ),
     ) -> None:
         if len(bank) == 0:
             raise ValueError("the sequence bank has no segment")
@@ -281,7 +375,10 @@ class SequenceSource:
             miss_view_rate=0.01,
             truncate_rate=0.02,
         )
-        self.joint_sigma = np.asarray(base.joint_sigma)
+        self.joint_sigma = joint_sigmas(base.joint_sigma, bank.poses.shape[1])
+        self.input_sets = tuple(input_sets)
+        if {k for k, _ in self.input_sets} - set(INPUT_SETS):
+            raise ValueError(f"input_sets kinds must be among {sorted(INPUT_SETS)}")
         self.camera_preset, self.room, self.scale_range = camera_preset, room, scale_range
         self.rng = np.random.default_rng(seed)
 
@@ -308,7 +405,8 @@ class SequenceSource:
         rng = self.rng
         B = len(joints)
         mirror = rng.random(B) < 0.5
-        flipped = joints[:, :, COCO17.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
+        skel = HALPE26 if joints.shape[2] == HALPE26.num_joints else COCO17
+        flipped = joints[:, :, skel.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
         joints = np.where(mirror[:, None, None, None], flipped, joints)
         root = joints[:, :, 11:13].mean(2).mean(1)  # (B, 3) mean mid-hip of the window
         origin = np.stack([root[:, 0], root[:, 1], np.zeros(B)], -1)[:, None, None]
@@ -336,6 +434,10 @@ class SequenceSource:
             joints[:, :, None], K[:, None, :, None], R[:, None, :, None], t[:, None, :, None]
         )
         kp, sc = _temporal_noise(kp, sc, uv, joints, times, (K, R, t, wh), self, rng, train)
+        if J == HALPE26.num_joints:  # the detector's joint set, one per window
+            given = input_joint_sets(B, dict(self.input_sets), rng)[:, None, None]
+            sc = np.where(given, sc, 0.0)
+            kp = np.where(given[..., None], kp, np.nan)
         rays = rays_from_keypoints(kp, K=K[:, None], R=R[:, None], t=t[:, None])
         rays = np.where(sc[..., None] > 0, rays, 0.0)
         return SequenceBatch(
@@ -404,7 +506,7 @@ def _correlated_error(shape, times, height, src: SequenceSource, rng) -> np.ndar
 def _swap_runs(kp, sc, times, tn: TemporalNoise, rng):
     """Left/right swap runs of single pairs and whole-body flip runs, per view."""
     B, T, V, J, _ = kp.shape
-    pairs = np.array(COCO17.flip_pairs)
+    pairs = np.array((HALPE26 if J == HALPE26.num_joints else COCO17).flip_pairs)
     swap = _runs(rng, (B, V, len(pairs)), tn.swap_rate, tn.swap_seconds, times)  # (B,V,P,T)
     swap |= _runs(rng, (B, V, 1), tn.flip_rate, tn.swap_seconds, times)
     swap = swap.transpose(0, 3, 1, 2)  # (B, T, V, P)

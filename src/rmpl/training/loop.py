@@ -27,7 +27,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.triangulate import _dlt
 from rmpl.io.atomic import atomic_path
 from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, build_model, camera_features
-from rmpl.skeleton import COCO17, KP_STAR
+from rmpl.skeleton import KP_STAR, skeleton_for
 from rmpl.synth.noise import NoiseConfig
 
 __all__ = ["TrainConfig", "train", "save_checkpoint", "load_checkpoint", "validation_sets"]
@@ -69,6 +69,10 @@ class TrainConfig:
         mhp_val: an MHP directory for a second validation (``mhp_kpstar_*`` in the log):
             renders of held-out motion with their real detections (all of its meshes are
             used: make it from the ``holdout`` subjects only).
+        init: a checkpoint directory whose weights start the run (a fine-tune). Its joint
+            set may be smaller than the model's (COCO-17 into HALPE-26): each new joint's
+            identity token starts as that of the joint it hangs from
+            (:data:`INIT_FROM`). "" = random initialisation.
     """
 
     poses: str = ""
@@ -94,6 +98,7 @@ class TrainConfig:
     mhp: tuple[str, ...] = ()
     mhp_weight: float = 1.0
     mhp_val: str = ""
+    init: str = ""
 
     @classmethod
     def from_dict(cls, d: dict) -> TrainConfig:
@@ -172,7 +177,7 @@ def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) ->
         "format": "rmpl-checkpoint-1",
         "model": model.config.to_dict(),
         "skeleton": model.config.skeleton,
-        "joints": list(COCO17.joints),
+        "joints": list(skeleton_for(model.config.skeleton).joints),
         "units": "metres",
         **(extra or {}),
     }
@@ -264,7 +269,11 @@ def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
     from rmpl.data.mhp import MixSource, ShardSource
 
     shards = ShardSource(
-        list(cfg.mhp), exclude_subjects=cfg.holdout, drop_rate=sampler.drop_rate, seed=cfg.seed
+        list(cfg.mhp),
+        exclude_subjects=cfg.holdout,
+        drop_rate=sampler.drop_rate,
+        seed=cfg.seed,
+        joints=cfg.model_config().skeleton,
     )
     log.info("MHP: %d meshes x up to %d views", shards.num_meshes, shards.num_views)
     if shards.num_views < cfg.max_views:
@@ -285,7 +294,9 @@ def _mhp_validation_sets(cfg: TrainConfig, views=(1, 2, 3, 4, 5)) -> dict[int, o
         return {}
     from rmpl.data.mhp import ShardSource
 
-    src = ShardSource(cfg.mhp_val, drop_rate=0.0, augment=False, seed=54321)
+    src = ShardSource(
+        cfg.mhp_val, drop_rate=0.0, augment=False, seed=54321, joints=cfg.model_config().skeleton
+    )
     return {v: src.batch(cfg.val_size, v, train=False) for v in views if v <= src.num_views}
 
 
@@ -322,8 +333,10 @@ def evaluate_batches(model: RMPL, sets: dict) -> dict[str, float]:
     for v, b in sets.items():
         pred = forward_batch(model, b).numpy()
         e = np.linalg.norm(pred - b.target, axis=-1)
-        out[f"mpjpe_{v}v"] = float(e.mean() * 1000)
+        out[f"mpjpe_{v}v"] = float(np.nanmean(e[:, :17]) * 1000)  # COCO-17, as before
         out[f"kpstar_{v}v"] = float(e[:, list(KP_STAR)].mean() * 1000)
+        if e.shape[1] > 17 and np.isfinite(e[:, 17:]).any():
+            out[f"extra_{v}v"] = float(np.nanmean(e[:, 17:]) * 1000)  # head top .. heels
     model.train()
     return out
 
@@ -418,7 +431,7 @@ def _train_step(model, opt, b, cfg: TrainConfig, step: int, V: int) -> float:
     for g in opt.param_groups:
         g["lr"] = _lr_at(step, cfg)
     pred = forward_batch(model, b)
-    loss = (pred - torch.from_numpy(b.target)).norm(dim=-1).mean()
+    loss = joint_loss(pred, torch.from_numpy(b.target))
     if not torch.isfinite(loss):
         raise RuntimeError(f"non-finite loss at step {step}; stopping without saving")
     opt.zero_grad(set_to_none=True)
@@ -426,6 +439,48 @@ def _train_step(model, opt, b, cfg: TrainConfig, step: int, V: int) -> float:
     torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
     opt.step()
     return loss.item()
+
+
+def joint_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean Euclidean joint error (metres) over the joints with a target: NaN targets (a
+    COCO-17 set read as HALPE-26) are left out."""
+    ok = torch.isfinite(target).all(-1)
+    err = (pred - torch.nan_to_num(target)).norm(dim=-1)
+    if bool(ok.all()):
+        return err.mean()
+    return (err * ok).sum() / ok.sum().clamp(min=1)
+
+
+#: For :attr:`TrainConfig.init`: the joint whose identity token a new joint starts from.
+INIT_FROM: dict[str, str] = {
+    "head_top": "nose",
+    "neck": "nose",
+    "mid_hip": "left_hip",
+    "left_big_toe": "left_ankle",
+    "right_big_toe": "right_ankle",
+    "left_small_toe": "left_ankle",
+    "right_small_toe": "right_ankle",
+    "left_heel": "left_ankle",
+    "right_heel": "right_ankle",
+}
+
+
+def init_from_checkpoint(model: RMPL, path: str | Path) -> None:
+    """Copy a checkpoint's weights into ``model`` (see :attr:`TrainConfig.init`)."""
+    src, _ = load_checkpoint(path)
+    have, want = skeleton_for(src.config.skeleton), skeleton_for(model.config.skeleton)
+    state = src.state_dict()
+    anatomy = model.anatomy.detach().clone()
+    for j, name in enumerate(want.joints):
+        source = name if name in have.joints else INIT_FROM.get(name)
+        if source is None or source not in have.joints:
+            raise InputError(path, "joints", f"the joints of {want.name}", have.name)
+        anatomy[0, j] = state["anatomy"][0, have.index(source)]
+    state["anatomy"] = anatomy
+    try:
+        model.load_state_dict(state)
+    except RuntimeError as e:
+        raise InputError(path, "model", "the architecture of this run's model", e) from None
 
 
 def _save_state(out: Path, model, opt, src, rng_views, progress: _Progress) -> None:
@@ -462,6 +517,16 @@ def train(
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     model = build_model(cfg.model_config())
+    J = model.config.num_joints
+    for name, poses in (("training", poses_train), ("validation", poses_val)):
+        if np.shape(poses)[1:] != (J, 3):
+            raise InputError(
+                cfg.poses, "poses", f"{name} poses of {J} joints, as the model's "
+                f"{model.config.skeleton} (rmpl poses --body anny makes HALPE-26)",
+                np.shape(poses),
+            )  # fmt: skip
+    if cfg.init:
+        init_from_checkpoint(model, cfg.init)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     src = _training_source(cfg, poses_train)
     rng_views = np.random.default_rng(cfg.seed)

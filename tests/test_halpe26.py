@@ -1,0 +1,222 @@
+"""HALPE-26, the lifter's joint set beyond COCO-17: definitions, conversions, the training
+sources that make it and the lifters that take any joint set in."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from rmpl.errors import InputError
+from rmpl.skeleton import (
+    BLAZEPOSE33,
+    BODY25,
+    COCO17,
+    HALPE26,
+    convert,
+    embed,
+    embed_scores,
+    to_model_joints,
+)
+
+EXTRA = HALPE26.joints[17:]
+
+
+# ------------------------------------------------------------------ the joint set itself
+
+
+def test_halpe26_starts_with_coco17_and_mirrors_onto_itself():
+    assert HALPE26.joints[:17] == COCO17.joints
+    assert EXTRA == ("head_top", "neck", "mid_hip", "left_big_toe", "right_big_toe",
+                     "left_small_toe", "right_small_toe", "left_heel", "right_heel")  # fmt: skip
+    perm = HALPE26.flip_permutation()
+    assert sorted(perm) == list(range(26)) and (perm[perm] == np.arange(26)).all()
+    for name in ("head_top", "neck", "mid_hip"):  # the midline maps onto itself
+        assert perm[HALPE26.index(name)] == HALPE26.index(name)
+    assert HALPE26.joints[perm[HALPE26.index("left_heel")]] == "right_heel"
+
+
+def test_halpe26_to_shelf_uses_the_models_own_head_top_and_neck():
+    x = np.arange(26 * 3, dtype=float).reshape(26, 3)
+    y = convert(x, "halpe26", "shelf14")
+    assert y[-1].tolist() == x[HALPE26.index("head_top")].tolist()
+    assert y[-2].tolist() == x[HALPE26.index("neck")].tolist()
+    assert y[0].tolist() == x[HALPE26.index("right_ankle")].tolist()
+    assert convert(x, "halpe26", "coco17").tolist() == x[:17].tolist()
+
+
+def test_embed_places_joints_by_name_and_leaves_the_rest_missing():
+    kp = np.random.default_rng(0).normal(size=(4, 25, 2))
+    sc = np.random.default_rng(1).uniform(0.1, 1, (4, 25))
+    out, s = embed(kp, BODY25, HALPE26), embed_scores(sc, BODY25, HALPE26)
+    assert out.shape == (4, 26, 2) and s.shape == (4, 26)
+    for name in HALPE26.joints:
+        i = HALPE26.index(name)
+        if name == "head_top":  # BODY_25 has none
+            assert np.isnan(out[:, i]).all() and (s[:, i] == 0).all()
+        else:
+            assert (out[:, i] == kp[:, BODY25.index(name)]).all()
+            assert (s[:, i] == sc[:, BODY25.index(name)]).all()
+
+
+def test_blazepose_foot_index_fills_the_big_toe_slot():
+    kp = np.arange(33 * 2, dtype=float).reshape(33, 2)
+    out = embed(kp, BLAZEPOSE33, HALPE26)
+    big = HALPE26.index("left_big_toe")
+    assert out[big].tolist() == kp[BLAZEPOSE33.index("left_foot_index")].tolist()
+    assert out[HALPE26.index("left_heel")].tolist() == kp[BLAZEPOSE33.index("left_heel")].tolist()
+    assert np.isnan(out[HALPE26.index("left_small_toe")]).all()
+
+
+def test_to_model_joints_infers_coco17_and_refuses_unknown_counts():
+    kp, sc = np.zeros((3, 2, 17, 2)), np.ones((3, 2, 17))
+    k26, s26 = to_model_joints(kp, sc, "halpe26")
+    assert k26.shape == (3, 2, 26, 2) and (s26[..., 17:] == 0).all()
+    k, s = to_model_joints(k26, s26, "halpe26")  # its own set passes through
+    assert k.shape == k26.shape
+    with pytest.raises(ValueError, match="name their joint set"):
+        to_model_joints(np.zeros((2, 20, 2)), np.ones((2, 20)), "halpe26")
+    with pytest.raises(ValueError, match="has 25 joints"):
+        to_model_joints(kp, sc, "halpe26", joints="body25")
+
+
+# ------------------------------------------------------------------ parametric training pairs
+
+
+def _poses26(n=64, seed=0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    base = np.zeros((26, 3))
+    base[:, 2] = np.linspace(0.05, 1.7, 26)
+    base[:, 0] = rng.uniform(-0.2, 0.2, 26)
+    return base + rng.normal(0, 0.02, (n, 26, 3))
+
+
+def test_pair_source_draws_one_detector_kind_per_sample():
+    from rmpl.data.synthetic import PairSource, SamplerConfig
+    from rmpl.synth.noise import INPUT_SETS
+
+    only = {k: 0.0 for k in INPUT_SETS} | {"blazepose": 1.0}
+    cfg = SamplerConfig(drop_rate=0.0, input_sets=tuple(only.items()))
+    b = PairSource(_poses26(), cfg, seed=0).batch(32, 3)
+    assert b.rays.shape == (32, 3, 26, 6) and b.target.shape == (32, 26, 3)
+    given = b.scores > 0
+    never = HALPE26.indices(["head_top", "neck", "mid_hip", "left_small_toe", "right_small_toe"])
+    assert not given[..., never].any()
+    assert given[..., HALPE26.indices(["left_heel", "right_big_toe"])].any()
+    mixed = PairSource(_poses26(), SamplerConfig(drop_rate=0.0), seed=1).batch(256, 2)
+    head = (mixed.scores[..., HALPE26.index("head_top")] > 0).any(1)
+    assert 0 < head.mean() < 0.5  # HALPE-26 kinds only (0.2 of the samples), minus misses
+
+
+def test_joint_sigmas_extend_coco17_values():
+    from rmpl.synth.noise import NoiseConfig, joint_sigmas
+
+    s = joint_sigmas(NoiseConfig().joint_sigma, 26)
+    assert len(s) == 26 and (s[:17] == np.asarray(NoiseConfig().joint_sigma)).all()
+    assert (s[17:] > 0).all()
+    with pytest.raises(ValueError, match="20 joints"):
+        joint_sigmas(NoiseConfig().joint_sigma, 20)
+
+
+def test_coco17_sets_read_as_halpe26_have_missing_extras(tmp_path):
+    from rmpl.data.mhp import ShardSource, load_mhp
+    from tests.data.test_mhp import _fake_mhp
+
+    _fake_mhp(tmp_path)
+    d = load_mhp(tmp_path, joints="halpe26")
+    assert d["joints3d"].shape[1:] == (26, 3) and np.isnan(d["joints3d"][:, 17:]).all()
+    assert (d["scores"][..., 17:] == 0).all()
+    assert np.array_equal(d["joints3d"][:, :17], load_mhp(tmp_path)["joints3d"])
+    b = ShardSource(tmp_path, joints="halpe26", seed=0).batch(4, 2)
+    assert b.target.shape == (4, 26, 3) and (b.scores[..., 17:] == 0).all()
+
+
+# ------------------------------------------------------------------ training
+
+
+def test_joint_loss_leaves_out_missing_targets():
+    from rmpl.training.loop import joint_loss
+
+    pred = torch.zeros(2, 26, 3)
+    target = torch.full((2, 26, 3), float("nan"))
+    target[:, :17] = 0.0
+    target[:, :17, 0] = 0.5
+    assert torch.isclose(joint_loss(pred, target), torch.tensor(0.5))
+    assert torch.isfinite(joint_loss(pred.requires_grad_(), target))
+
+
+def test_init_from_a_coco17_checkpoint(tmp_path):
+    from rmpl.model.lifter import PRESETS, RMPL
+    from rmpl.training.loop import INIT_FROM, init_from_checkpoint, save_checkpoint
+
+    torch.manual_seed(0)
+    small = RMPL(PRESETS["tiny"])
+    save_checkpoint(small, tmp_path)
+    big = RMPL(PRESETS["tiny"].with_(num_joints=26, skeleton="halpe26"))
+    init_from_checkpoint(big, tmp_path)
+    a, b = small.anatomy.detach()[0], big.anatomy.detach()[0]
+    assert torch.equal(b[:17], a)
+    for name, source in INIT_FROM.items():
+        assert torch.equal(b[HALPE26.index(name)], a[COCO17.index(source)])
+    assert torch.equal(big.head.weight, small.head.weight)
+    # COCO-17 rays give the same COCO-17 answer (the new joints only add tokens the pose
+    # transformer attends to, so the answers differ, but both are finite and shaped).
+    rays = torch.randn(2, 3, 26, 6)
+    rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
+    scores = torch.rand(2, 3, 26)
+    scores[..., 17:] = 0
+    assert torch.isfinite(big(rays, scores)).all()
+
+
+def test_training_refuses_poses_of_another_joint_set(tmp_path):
+    from rmpl.training.loop import TrainConfig, train
+
+    cfg = TrainConfig.from_dict(
+        {"preset": "tiny", "steps": 1, "model": {"num_joints": 26, "skeleton": "halpe26"}}
+    )
+    poses17 = np.zeros((8, 17, 3))
+    with pytest.raises(InputError, match="26 joints"):
+        train(cfg, tmp_path, poses17, poses17)
+
+
+# ------------------------------------------------------------------ lifting
+
+
+@pytest.fixture(scope="module")
+def lifter26(tmp_path_factory):
+    from rmpl import Lifter
+    from rmpl.model.lifter import PRESETS, RMPL
+    from rmpl.training.loop import save_checkpoint
+
+    torch.manual_seed(0)
+    path = tmp_path_factory.mktemp("halpe26")
+    save_checkpoint(RMPL(PRESETS["tiny"].with_(num_joints=26, skeleton="halpe26")), path)
+    return Lifter.from_pretrained(path, backend="torch")
+
+
+def _rig_and_keypoints(J: int):
+    from rmpl.geometry.camera import Camera, Rig, look_at, project
+
+    K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+    cams = [Camera(K, *look_at(np.array(e), np.array([0, 0, 1.0])), name=str(i))
+            for i, e in enumerate([[3.0, 0, 1.5], [0, 3, 1.5], [-3, 0, 1.5]])]  # fmt: skip
+    rig = Rig(tuple(cams))
+    X = np.random.default_rng(0).normal([0, 0, 1.0], 0.3, (J, 3))
+    kp = np.stack([project(X, c.K, c.R, c.t) for c in cams])[None]  # (1, V, J, 2)
+    return rig, kp, np.ones(kp.shape[:-1])
+
+
+def test_a_halpe26_lifter_takes_coco17_body25_and_its_own_joints(lifter26):
+    assert lifter26.skeleton is HALPE26 and lifter26.num_joints == 26
+    rig, kp26, sc26 = _rig_and_keypoints(26)
+    full = lifter26.lift(kp26, sc26, rig)
+    assert full.points.shape == (1, 26, 3) and (full.num_views == 3).all()
+    coco = lifter26.lift(kp26[..., :17, :], sc26[..., :17], rig)
+    assert coco.points.shape == (1, 26, 3) and np.isfinite(coco.points).all()
+    assert (coco.num_views[..., 17:] == 0).all() and (coco.num_views[..., :17] == 3).all()
+    # The same input as COCO-17 + missing extras, given as HALPE-26: the same answer.
+    padded = embed(kp26[..., :17, :], COCO17, HALPE26)
+    same = lifter26.lift(padded, embed_scores(sc26[..., :17], COCO17, HALPE26), rig)
+    np.testing.assert_allclose(same.points, coco.points, atol=1e-6)
+    with pytest.raises(InputError, match="keypoints"):
+        lifter26.lift(np.zeros((1, 3, 20, 2)), np.ones((1, 3, 20)), rig)
