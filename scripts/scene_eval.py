@@ -168,14 +168,16 @@ def seen_by_detector(match: np.ndarray, num_bodies: int) -> np.ndarray:
     return (match[:, :, None] == np.arange(num_bodies)).any(1)
 
 
-def seen_by_projection(projected: np.ndarray, hidden: np.ndarray, size: np.ndarray) -> np.ndarray:
-    """Which views show each body: at least :data:`MIN_VISIBLE` KP* joints inside the image
-    and not hidden. projected (V, P, J, 2) px, hidden (V, P, J), size (V, 2) -> (V, P)."""
+def seen_by_projection(
+    projected: np.ndarray, hidden: np.ndarray, size: np.ndarray, least: int = MIN_VISIBLE
+) -> np.ndarray:
+    """Which views show each body: at least ``least`` KP* joints inside the image and not
+    hidden. projected (V, P, J, 2) px, hidden (V, P, J) (or False), size (V, 2) -> (V, P)."""
     wh = size[:, None, None].astype(float)  # (V, 1, 1, 2)
     with np.errstate(invalid="ignore"):
         inside = ((projected >= 0) & (projected < wh)).all(-1)  # NaN (no body) is outside
     shown = inside & ~hidden
-    return shown[..., list(KP_STAR)].sum(-1) >= MIN_VISIBLE
+    return shown[..., list(KP_STAR)].sum(-1) >= least
 
 
 def person_errors(pred: np.ndarray, gt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -217,6 +219,8 @@ class Person:
     method: str
     seen_det: int
     seen_proj: int
+    hidden: int
+    outside: int
     found: bool
     mpjpe: float
 
@@ -238,6 +242,10 @@ def score_subset(
     proj = seen_by_projection(
         d["projected"][m, v], d["hidden"][m, v], d["size"][m, v]
     )[:, bodies].sum(0)  # fmt: skip
+    star = list(KP_STAR)
+    hidden = d["hidden"][m, v][:, bodies][..., star].sum((0, 2))  # (P,) over the views
+    outside = (~seen_by_projection(d["projected"][m, v], False, d["size"][m, v], 12))[:, bodies]
+    outside = outside.sum(0)  # views where some KP* joint projects outside the image
     assoc = associate_frames(kp[None], sc[None], rig)[0]
     given_kp, given_sc, given_ok = given_people(kp, sc, match, d["present"].shape[1])
     people, spurious = [], {}
@@ -254,8 +262,8 @@ def score_subset(
             spurious[name] = len(pred) - int((idx >= 0).sum())
         for i, b in enumerate(bodies):
             people.append(
-                Person(m, views, int(b), name, int(det[i]), int(proj[i]), bool(idx[i] >= 0),
-                       float(err[i]))
+                Person(m, views, int(b), name, int(det[i]), int(proj[i]), int(hidden[i]),
+                       int(outside[i]), bool(idx[i] >= 0), float(err[i]))
             )  # fmt: skip
     return people, spurious
 
@@ -353,15 +361,44 @@ def table(results: dict[str, tuple], methods: list[str], k: int) -> str:
     return "\n".join(lines)
 
 
+def breakdown(results: dict[str, tuple], method: str, k: int) -> str:
+    """Markdown: ``method``'s MPJPE of found persons by how many views detect them, and of
+    those every view detects, by mutual occlusion and by the image border."""
+    groups: dict[str, Callable[[Person], bool]] = {
+        f"{n} of {k} views detect": (lambda p, n=n: p.seen_det == n) for n in range(2, k + 1)
+    }
+    groups |= {
+        "all detect, whole body in every image, no KP* joint hidden": lambda p: (
+            p.seen_det == k and p.outside == 0 and p.hidden == 0
+        ),
+        "all detect, whole body in every image, some KP* joint hidden": lambda p: (
+            p.seen_det == k and p.outside == 0 and p.hidden > 0
+        ),
+        "all detect, some KP* joint outside an image": lambda p: p.seen_det == k and p.outside > 0,
+    }
+    lines = [
+        f"| {method}: persons found | " + " | ".join(results) + " |",
+        "|---|" + "---:|" * len(results),
+    ]
+    for label, rule in groups.items():
+        cells = []
+        for people, _, _ in results.values():
+            err = np.array([p.mpjpe for p in people if p.method == method and p.found and rule(p)])
+            cells.append(f"{len(err)}: {err.mean():.1f} mm" if len(err) else "0")
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def write_csv(path: str | Path, results: dict[str, tuple]) -> None:
     with open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["set", "scene", "views", "body", "method", "seen_det", "seen_proj",
-                    "found", "mpjpe_mm"])  # fmt: skip
+                    "hidden_kpstar", "views_cut", "found", "mpjpe_mm"])  # fmt: skip
         for label, (people, _, _) in results.items():
             for p in people:
                 w.writerow([label, p.scene, " ".join(map(str, p.subset)), p.body, p.method,
-                            p.seen_det, p.seen_proj, int(p.found), f"{p.mpjpe:.2f}"])  # fmt: skip
+                            p.seen_det, p.seen_proj, p.hidden, p.outside, int(p.found),
+                            f"{p.mpjpe:.2f}"])  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -381,6 +418,8 @@ def main(argv: list[str] | None = None) -> int:
         if folder:
             results[label] = evaluate_set(load_scenes(folder), args.views, methods)
     print(table(results, names, args.views))
+    print()
+    print(breakdown(results, names[0], args.views))
     print(f"({time.perf_counter() - t0:.0f} s; miss gate {MISS_GATE} m mean KP* distance; "
           f"proj = {MIN_VISIBLE}+ of 12 KP* joints in the image and not hidden)")  # fmt: skip
     if args.csv:
