@@ -54,3 +54,28 @@ def test_swapped_heels_in_one_view_are_swapped_back():
     res = triangulate_robust(kp, sc, rig, max_error=5.0, swap_pairs=HALPE26.flip_pairs)
     assert np.abs(res.points[0, [left, right]] - X[0, [left, right]]).max() < 1e-6
     assert res.views[0, :, [left, right]].all()  # every view used, view 1 swapped back
+
+
+def test_a_swap_never_invents_a_joint_seen_in_one_view():
+    """A left heel seen in one view and a right heel seen in three: swapping the one view's
+    left/right would make both 'triangulate', the left from a right-heel observation."""
+    from rmpl.geometry.camera import Camera, Rig, look_at, project
+    from rmpl.geometry.triangulate import triangulate_robust
+    from rmpl.skeleton import HALPE26
+
+    K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+    eyes = [[3.0, 0, 1.5], [0, 3, 1.5], [-3, 0, 1.5], [0, -3, 1.5]]
+    rig = Rig(tuple(Camera(K, *look_at(np.array(e), np.array([0, 0, 1.0])), name=str(i))
+                    for i, e in enumerate(eyes)))  # fmt: skip
+    X = np.random.default_rng(3).normal([0, 0, 1.0], 0.3, (26, 3))
+    kp = np.stack([project(X, c.K, c.R, c.t) for c in rig.cameras])[None]  # (1, 4, 26, 2)
+    sc = np.ones(kp.shape[:-1])
+    lh, rh = HALPE26.index("left_heel"), HALPE26.index("right_heel")
+    X[lh] = X[rh] + [0.04, 0.0, 0.0]  # feet together: a borrowed point fits within 15 px
+    kp = np.stack([project(X, c.K, c.R, c.t) for c in rig.cameras])[None]
+    sc[0, 1:, lh] = 0  # the left heel: view 0 only
+    sc[0, 0, rh] = 0  # the right heel: views 1-3
+    kp[sc == 0] = np.nan
+    out = triangulate_robust(kp, sc, rig, swap_pairs=HALPE26.flip_pairs)
+    assert np.isnan(out.points[0, lh]).all()
+    np.testing.assert_allclose(out.points[0, rh], X[rh], atol=1e-6)

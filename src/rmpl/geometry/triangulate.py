@@ -180,7 +180,8 @@ def _robust_block(kp, xy, w, valid, rig, masks, max_error, keep_failed):
 
 
 def _swap_left_right(kp, sc, rig, flip_pairs, min_score):
-    """Per view and left/right pair, swap the two keypoints when that lowers the pair's error."""
+    """Per view and left/right pair, swap the two keypoints when that at least halves the
+    pair's error (only pairs whose two joints both triangulate as they are)."""
     kp, sc = kp.copy(), sc.copy()
     a_idx = [a for a, _ in flip_pairs]
     b_idx = [b for _, b in flip_pairs]
@@ -192,7 +193,9 @@ def _swap_left_right(kp, sc, rig, flip_pairs, min_score):
         sc2[..., v, a_idx], sc2[..., v, b_idx] = sc[..., v, b_idx], sc[..., v, a_idx]
         alt = triangulate(kp2, sc2, rig, min_score)
         alt_err = alt.error[..., a_idx] + alt.error[..., b_idx]
-        better = np.nan_to_num(alt_err, nan=np.inf) < 0.5 * np.nan_to_num(base_err, nan=np.inf)
+        # Only where both joints of the pair triangulate as they are: a pair with a joint
+        # seen once would otherwise "improve" by borrowing the other side's observation.
+        better = np.isfinite(base_err) & (np.nan_to_num(alt_err, nan=np.inf) < 0.5 * base_err)
         for k, (a, b) in enumerate(flip_pairs):
             m = better[..., k]
             kp[m, v, a], kp[m, v, b] = kp2[m, v, a], kp2[m, v, b]
