@@ -25,7 +25,7 @@ from rmpl.data.sequences import SequenceBank, SequenceSource, TemporalNoise
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
 from rmpl.model.temporal import RADIUS_50, TemporalConfig, TemporalRMPL
-from rmpl.skeleton import COCO17, KP_STAR
+from rmpl.skeleton import KP_STAR, skeleton_for
 
 __all__ = [
     "TemporalTrainConfig",
@@ -161,7 +161,7 @@ def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = No
         "model": model.frame_model.config.to_dict(),
         "temporal": model.config.to_dict(),
         "skeleton": model.frame_model.config.skeleton,
-        "joints": list(COCO17.joints),
+        "joints": list(skeleton_for(model.frame_model.config.skeleton).joints),
         "units": "metres",
         **(extra or {}),
     }
@@ -204,10 +204,15 @@ def loss_terms(model: TemporalRMPL, b) -> tuple[torch.Tensor, torch.Tensor, torc
     rays, scores, times, target = _tensors(b)
     points, sigma = model(rays, scores, times)
     seen = (scores > 0).flatten(1).any(1)  # (B,) windows with nothing seen give NaN: skipped
-    err = (points[seen] - target[seen]).norm(dim=-1)  # (B', T, J)
+    target = target[seen]
+    known = torch.isfinite(target).all(-1)  # COCO-17 sets read as HALPE-26 lack 9 targets
+    err = (points[seen] - torch.nan_to_num(target)).norm(dim=-1)  # (B', T, J)
     s = sigma[seen].clamp_min(1e-3)
     nll = 3 * s.log() + err.detach() ** 2 / (2 * s**2)
-    return err.mean(), nll.mean(), err
+    if bool(known.all()):
+        return err.mean(), nll.mean(), err
+    n = known.sum().clamp(min=1)
+    return (err * known).sum() / n, (nll * known).sum() / n, err.masked_fill(~known, float("nan"))
 
 
 def validation_sets(val: SequenceBank, cfg: TemporalTrainConfig, views=(1, 2, 3, 5)) -> dict:
@@ -360,7 +365,10 @@ class _Run:
             from rmpl.data.mhp import SequenceShardSource
 
             self.mhp = SequenceShardSource(
-                list(cfg.mhp_sequences), exclude_subjects=cfg.holdout, seed=cfg.seed + 2
+                list(cfg.mhp_sequences),
+                exclude_subjects=cfg.holdout,
+                seed=cfg.seed + 2,
+                joints=self.model.frame_model.config.skeleton,
             )
             if self.mhp.num_frames < self.model.config.window:
                 raise InputError(
