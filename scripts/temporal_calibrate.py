@@ -51,7 +51,8 @@ def main() -> None:
     if a.mhp:
         from rmpl.data.mhp import SequenceShardSource
 
-        src = SequenceShardSource(a.mhp, augment=False, seed=12345)
+        joints = model.frame_model.config.skeleton
+        src = SequenceShardSource(a.mhp, augment=False, seed=12345, joints=joints)
         w = model.config.window
         sets = {v: src.batch(a.windows, w, v, train=False) for v in (2, 3, 5)}
     else:
