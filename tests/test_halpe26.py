@@ -220,3 +220,43 @@ def test_a_halpe26_lifter_takes_coco17_body25_and_its_own_joints(lifter26):
     np.testing.assert_allclose(same.points, coco.points, atol=1e-6)
     with pytest.raises(InputError, match="keypoints"):
         lifter26.lift(np.zeros((1, 3, 20, 2)), np.ones((1, 3, 20)), rig)
+
+
+def test_a_hidden_joint_starts_from_its_parent():
+    from rmpl.model.lifter import parent_fallback
+    from rmpl.skeleton import anchor_parents
+
+    parents = torch.tensor(anchor_parents("halpe26"))
+    X = torch.arange(26 * 3, dtype=torch.float32).reshape(1, 26, 3)
+    valid = torch.ones(1, 26, dtype=torch.bool)
+    names = ("left_small_toe", "left_big_toe", "left_ankle", "left_knee")
+    small, big, ankle, knee = HALPE26.indices(names)
+    valid[0, [small, big, ankle]] = False  # the chain climbs to the knee
+    valid[0, HALPE26.index("nose")] = False  # no parent: keeps its own point
+    out = parent_fallback(X, valid, parents)
+    for j in (small, big, ankle):
+        assert torch.equal(out[0, j], X[0, knee])
+    assert torch.equal(out[0, HALPE26.index("nose")], X[0, HALPE26.index("nose")])
+    keep = valid[0]
+    assert torch.equal(out[0, keep], X[0, keep])
+
+
+def test_anchor_parents_model_exports_and_keeps_the_default_model_unchanged():
+    from rmpl.model.lifter import PRESETS, RMPL
+
+    torch.manual_seed(0)
+    plain = RMPL(PRESETS["tiny"].with_(num_joints=26, skeleton="halpe26")).eval()
+    torch.manual_seed(0)
+    tree = RMPL(PRESETS["tiny"].with_(num_joints=26, skeleton="halpe26", anchor_parents=True))
+    tree.eval()
+    from rmpl.geometry.rays import rays_from_keypoints
+
+    rig, kp, _ = _rig_and_keypoints(26)  # a consistent pose: every joint's rays meet
+    rays = torch.from_numpy(rays_from_keypoints(kp, rig).astype(np.float32))
+    scores = torch.rand(1, 3, 26) * 0.5 + 0.5
+    with torch.no_grad():
+        assert torch.equal(plain(rays, scores), tree(rays, scores))  # every joint seen
+        scores[..., 17:] = 0
+        assert not torch.equal(plain(rays, scores), tree(rays, scores))
+    with pytest.raises(ValueError, match="num_joints"):
+        RMPL(PRESETS["tiny"].with_(num_joints=17, skeleton="halpe26", anchor_parents=True))

@@ -30,6 +30,8 @@ __all__ = [
     "EMBED_ALIASES",
     "skeleton_for",
     "to_model_joints",
+    "ANCHOR_PARENTS",
+    "anchor_parents",
     "flip_left_right",
 ]
 
@@ -577,6 +579,44 @@ def to_model_joints(
     if src.name == dst.name:
         return np.asarray(keypoints, float), np.asarray(scores, float)
     return embed(keypoints, src, dst), embed_scores(scores, src, dst)
+
+
+#: Where a joint no two views locate starts from (the lifter's ``anchor_parents``): the
+#: nearest joint on the way to the trunk. Joints not named here (nose, shoulders, hips)
+#: start from the person's anchor, as before.
+ANCHOR_PARENTS: dict[str, str] = {
+    "left_eye": "nose",
+    "right_eye": "nose",
+    "left_ear": "left_eye",
+    "right_ear": "right_eye",
+    "left_elbow": "left_shoulder",
+    "right_elbow": "right_shoulder",
+    "left_wrist": "left_elbow",
+    "right_wrist": "right_elbow",
+    "left_knee": "left_hip",
+    "right_knee": "right_hip",
+    "left_ankle": "left_knee",
+    "right_ankle": "right_knee",
+    "head_top": "nose",
+    "neck": "left_shoulder",
+    "mid_hip": "left_hip",
+    "left_big_toe": "left_ankle",
+    "right_big_toe": "right_ankle",
+    "left_small_toe": "left_big_toe",
+    "right_small_toe": "right_big_toe",
+    "left_heel": "left_ankle",
+    "right_heel": "right_ankle",
+}
+
+
+def anchor_parents(skeleton: str | Skeleton) -> list[int]:
+    """:data:`ANCHOR_PARENTS` as indices into ``skeleton`` (-1 = none), shape (J,).
+
+    >>> anchor_parents("coco17")[15] == COCO17.index("left_knee")
+    True
+    """
+    s = skeleton_for(skeleton)
+    return [s._index.get(ANCHOR_PARENTS.get(n, ""), -1) for n in s.joints]
 
 
 def skeleton_for(name_or_skeleton: str | Skeleton) -> Skeleton:

@@ -66,6 +66,10 @@ class RMPLConfig:
             (:func:`anchors_from_rays`): with three or more views a ray far from the others
             (a detector outlier) loses its weight, as in robust triangulation. 0 = the plain
             confidence-weighted least squares of the first checkpoints.
+        anchor_parents: a joint no two views locate starts from its parent joint's point
+            (:data:`rmpl.skeleton.ANCHOR_PARENTS`, followed up the chain) instead of the
+            person's anchor: a hidden heel starts at its ankle, not at the pelvis. False =
+            the person's anchor (the first checkpoints).
     """
 
     num_joints: int = 17
@@ -83,6 +87,7 @@ class RMPLConfig:
     max_views: int = 8
     skeleton: str = "coco17"
     robust_anchor: int = 0
+    anchor_parents: bool = False
 
     def __post_init__(self) -> None:
         if (
@@ -217,6 +222,26 @@ def anchors_from_rays(
     return X, valid, P
 
 
+def parent_fallback(X: torch.Tensor, valid: torch.Tensor, parents: torch.Tensor) -> torch.Tensor:
+    """Joints that are not ``valid`` take their parent's point, up the chain.
+
+    Args:
+        X: (B, J, 3) joint points; valid: (B, J) bool; parents: (J,) long, -1 = none.
+
+    Returns:
+        (B, J, 3): a valid joint's own point; else the first valid joint up its chain of
+        parents; else (no valid ancestor) its point as given (the person's anchor).
+    """
+    has = parents >= 0
+    idx = torch.where(has, parents, torch.arange(len(parents), device=parents.device))
+    have = valid
+    for _ in range(4):  # the longest chain (small toe -> big toe -> ankle -> knee -> hip)
+        take = ~have & has[None] & have[:, idx]
+        X = torch.where(take[..., None], X[:, idx], X)
+        have = have | take
+    return X
+
+
 def _robust_intersections(o, d, w, M, wM, wMo, X, valid, iterations: int) -> torch.Tensor:
     """Ray intersections robust to an outlying view (only broadcasting: any V, ONNX-friendly).
 
@@ -308,6 +333,14 @@ class RMPL(nn.Module):
         self.joint_embed = nn.Linear(6, c.dim) if c.geometric else None
         self.pose_encoder = Encoder(c.dim, c.depth_pose, c.heads, c.mlp_ratio, c.drop_path)
         self.head = nn.Linear(c.dim, 3)
+        if c.anchor_parents:
+            from rmpl.skeleton import anchor_parents
+
+            parents = torch.tensor(anchor_parents(c.skeleton), dtype=torch.long)
+            if len(parents) != c.num_joints:
+                raise ValueError(f"skeleton {c.skeleton!r} has {len(parents)} joints, not "
+                                 f"num_joints={c.num_joints}")  # fmt: skip
+            self.register_buffer("parents", parents, persistent=False)
         self._init()
 
     def _init(self) -> None:
@@ -365,6 +398,8 @@ class RMPL(nn.Module):
         scores = torch.where(ok, scores, torch.zeros_like(scores))
         if c.recenter or c.geometric:
             base, valid, P = anchors_from_rays(rays, scores, robust=c.robust_anchor)
+            if c.anchor_parents:
+                base = parent_fallback(base, valid, self.parents)
         else:
             valid = torch.zeros(B, J, dtype=torch.bool, device=rays.device)
         if not c.recenter:
