@@ -260,3 +260,51 @@ def test_anchor_parents_model_exports_and_keeps_the_default_model_unchanged():
         assert not torch.equal(plain(rays, scores), tree(rays, scores))
     with pytest.raises(ValueError, match="num_joints"):
         RMPL(PRESETS["tiny"].with_(num_joints=17, skeleton="halpe26", anchor_parents=True))
+
+
+# ------------------------------------------------------------------ motion on anny bodies
+
+
+@pytest.fixture(scope="module")
+def one_clip(tmp_path_factory):
+    """One short CMU clip (subject 02, trial 01) copied into its own folder."""
+    import shutil
+
+    from tests.conftest import shared_data_root, synth_ready
+
+    root = shared_data_root()
+    src = None if root is None else root / "cmu_mocap/asfamc/data/CMU/asfamc/subjects/02"
+    if src is None or not (src / "02_01.amc").is_file():
+        pytest.skip("CMU subject 02 not found in ../shared/data/cmu_mocap")
+    cache = synth_ready("anny")
+    out = tmp_path_factory.mktemp("clip") / "02"
+    out.mkdir()
+    for name in ("02.asf", "02_01.amc"):
+        shutil.copy(src / name, out / name)
+    return out.parent, cache
+
+
+def test_motion_posed_on_anny_follows_the_mocap(one_clip):
+    from rmpl.data.sequences import SequenceBank, anny_sequence_bank
+    from rmpl.synth.body import BodyModel
+    from rmpl.synth.retarget import anny_pose_set, build_pose_bank, limb_angles
+
+    root, cache = one_clip
+    body = BodyModel(cache_dir=cache, joints="halpe26")
+    seq = anny_sequence_bank(root, body, fps=10)
+    mocap = SequenceBank.from_motion_dir(root, fps=10)
+    assert seq.poses.shape == (len(mocap.poses), 26, 3)
+    assert np.array_equal(seq.length, mocap.length)
+    # The limbs point where the mocap's do; the segment stands on the floor.
+    angles = limb_angles(mocap.poses.astype(float), seq.poses[:, :17].astype(float))
+    assert np.median(angles) < 8
+    assert 0 <= seq.poses[..., 2].min() < 0.1
+    # One body per segment: a thigh keeps its length.
+    first = seq.poses[seq.start[0] : seq.start[0] + seq.length[0]]
+    thigh = np.linalg.norm(first[:, 11] - first[:, 13], axis=-1)
+    assert thigh.std() < 0.01 * thigh.mean()
+    # The single-pose bank: HALPE-26 per pose, heels near their ankles.
+    poses = anny_pose_set(build_pose_bank(root, fps=2), body)
+    assert poses.poses.shape[1:] == (26, 3) and len(poses) > 0
+    heel = np.linalg.norm(poses.poses[:, 24] - poses.poses[:, 15], axis=-1)
+    assert (heel > 0.02).all() and (heel < 0.15).all()
