@@ -546,7 +546,7 @@ def duplicate_people(
     as two clusters of different views. Person ``i`` duplicates person ``j`` when the two
     share no view and, in every view ``j`` uses, ``i``'s 3D (the confidence-weighted DLT
     of its twelve limb joints, :data:`rmpl.skeleton.KP_STAR`) reprojects within
-    ``tolerance`` of ``j``'s size onto ``j``'s detection: the median pixel distance over
+    ``duplicate_tolerance`` of ``j``'s size onto ``j``'s detection: the median pixel distance over
     the joints both have, divided by the larger side of ``j``'s 2D box there. A view of
     ``j`` with fewer than ``min_common_joints`` such joints, or a point behind its camera,
     decides "not a duplicate". Of a duplicate pair (either way round) the person with fewer
