@@ -547,7 +547,8 @@ def duplicate_people(
     share no view and, in every view ``j`` uses, ``i``'s 3D (the confidence-weighted DLT
     of its twelve limb joints, :data:`rmpl.skeleton.KP_STAR`) reprojects within
     ``duplicate_tolerance`` of ``j``'s size onto ``j``'s detection: the median pixel distance over
-    the joints both have, divided by the larger side of ``j``'s 2D box there. A view of
+    the joints both have, divided by the larger side of ``j``'s 2D box there (of its
+    COCO-17 joints, so that a detector's extra joints change no decision). A view of
     ``j`` with fewer than ``min_common_joints`` such joints, or a point behind its camera,
     decides "not a duplicate". Of a duplicate pair (either way round) the person with fewer
     views goes; with as many, the one whose views agree less (the larger mean ray-to-ray
@@ -583,8 +584,9 @@ def duplicate_people(
     uv = rig.project(points)  # (N, V, L, 2)
     depth = np.einsum("vij,nlj->nvli", rig.R, points)[..., 2] + rig.t[None, :, None, 2]
     sure = np.isfinite(kp).all(-1) & (sc >= cfg.min_score)  # (N, V, L)
-    box = np.where(np.isfinite(people.keypoints) & (people.scores > 0)[..., None],
-                   people.keypoints, np.nan)  # fmt: skip
+    use = coco17_joints(J, skeleton)  # the joints association decides on
+    box = people.keypoints[:, :, use]
+    box = np.where(np.isfinite(box) & (people.scores[:, :, use] > 0)[..., None], box, np.nan)
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # views a person is not in: NaN
         size = np.nanmax(np.nanmax(box, -2) - np.nanmin(box, -2), -1)  # (N, V)
@@ -602,7 +604,6 @@ def duplicate_people(
 
     num_views = seen.sum(-1)
     spread = np.full(N, np.inf)  # mean ray cost between a person's own views
-    use = coco17_joints(J, skeleton)
     for n in range(N):
         vs = np.flatnonzero(seen[n])
         c = ray_distance_cost(people.keypoints[n, vs][:, use], people.scores[n, vs][:, use],
