@@ -308,3 +308,15 @@ def test_motion_posed_on_anny_follows_the_mocap(one_clip):
     assert poses.poses.shape[1:] == (26, 3) and len(poses) > 0
     heel = np.linalg.norm(poses.poses[:, 24] - poses.poses[:, 15], axis=-1)
     assert (heel > 0.02).all() and (heel < 0.15).all()
+
+
+def test_rmpl_poses_sequences_on_anny_writes_halpe26(one_clip, tmp_path, monkeypatch):
+    from rmpl.cli import main
+    from rmpl.data.sequences import SequenceBank
+
+    root, cache = one_clip
+    monkeypatch.setenv("ANNY_CACHE_DIR", str(cache))
+    out = tmp_path / "seq.npz"
+    assert main(["poses", str(root), "--sequences", "--body", "anny", "--fps", "5",
+                 "--out", str(out)]) == 0  # fmt: skip
+    assert SequenceBank.load(out).poses.shape[1:] == (26, 3)

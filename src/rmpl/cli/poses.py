@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(None, "--fps", "a frame rate > 0", fps)
     if not Path(args.motion).is_dir():
         raise InputError(args.motion, None, "a folder of motion-capture files")
-    if args.sequences:
+    if args.sequences and args.body == "mocap":
         from rmpl.data.sequences import SequenceBank
 
         seq = SequenceBank.from_motion_dir(args.motion, fps=fps)
@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
                  minutes, fps)  # fmt: skip
         return 0
     args.fps = fps
-    if args.body == "anny" and args.sequences:
+    if args.sequences:  # on anny bodies
         from rmpl.data.sequences import anny_sequence_bank
         from rmpl.synth.body import BodyModel
 
