@@ -32,12 +32,15 @@ __all__ = ["Lifter", "LiftResult", "estimate_up", "rotation_to_z", "PRETRAINED"]
 log = logging.getLogger(__name__)
 
 _WEIGHTS = Path(__file__).parent / "weights"
-#: Models shipped inside the package, by name. ``default``: the best on the joints the
-#: detector sees; ``occlusion``: the same recipe with more keypoint removal in training
-#: (p=0.4), better when many keypoints are missing (docs/results.md).
+#: Models shipped inside the package, by name. ``default``: COCO-17, the best on the joints
+#: the detector sees; ``occlusion``: the same recipe with more keypoint removal in training
+#: (p=0.4), better when many keypoints are missing; ``halpe26``: HALPE-26 (COCO-17 + head
+#: top, neck, mid-hip and feet), ``default`` fine-tuned on anny bodies, what ``rmpl run`` and
+#: ``rmpl lift`` use unless told otherwise (docs/results.md).
 PRETRAINED: dict[str, Path] = {
     "default": _WEIGHTS / "default",
     "occlusion": _WEIGHTS / "occlusion",
+    "halpe26": _WEIGHTS / "halpe26",
 }
 
 

@@ -337,7 +337,11 @@ def test_run_one_camera_end_to_end_with_the_floor(tmp_path, caplog):
     assert "one camera: depth along the rays comes from priors" in text
     assert "--floor z=0" in text and "depth uncertainty" in text
     poses = load_poses(tmp_path / "f" / "poses.npz")
-    assert poses.points.shape == (60, 1, 17, 3) and np.isfinite(poses.points).all()
+    from rmpl import Lifter
+    from rmpl.cli.run import ONE_CAMERA
+
+    J = Lifter.from_pretrained(ONE_CAMERA).num_joints  # rmpl run's one-camera model's joints
+    assert poses.points.shape == (60, 1, J, 3) and np.isfinite(poses.points).all()
     u = poses.uncertainty
     assert u is not None and np.isfinite(u).all() and (u > 0).all()
     # The floor fixes where along the rays the walker is. The example's ankles rest 0.1 m

@@ -14,8 +14,9 @@ from rmpl.geometry.camera import Rig
 #: ``--model`` help of the commands that lift (the names of rmpl.inference.PRETRAINED, kept
 #: here so that building the parser does not import torch).
 MODEL_HELP = (
-    "shipped model (default: per frame; occlusion: per frame, for many missing keypoints; "
-    "temporal: whole tracks, needs a frame rate) or checkpoint folder"
+    "shipped model (halpe26: per frame, COCO-17 + head top, neck, mid-hip and feet; default: "
+    "per frame, COCO-17; occlusion: COCO-17, for many missing keypoints; temporal: whole "
+    "tracks, COCO-17, needs a frame rate) or checkpoint folder"
 )
 
 #: ``--floor`` help of ``rmpl run`` and ``rmpl lift``.
@@ -210,6 +211,10 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     out = check_output(args.out)
     inputs = load_calibration_and_2d(args)
     check_cameras(inputs.rig, args.calib, method)
+    if config.get("model", "") is None:  # rmpl lift without --model: rmpl run's per-frame rule
+        from rmpl.cli.run import per_frame_model
+
+        config["model"] = per_frame_model(len(inputs.rig))
     cfg = RunConfig(method=method, **config)
     floor = getattr(args, "floor", None)
     if one_camera(inputs.rig, method, cfg.model):

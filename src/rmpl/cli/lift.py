@@ -23,8 +23,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     add_io_arguments(parser)
     parser.add_argument(
         "--model",
-        default="default",
-        help=MODEL_HELP,
+        default=None,
+        help=MODEL_HELP + ". Default: halpe26, or with one camera default",
     )
     parser.add_argument(
         "--up",

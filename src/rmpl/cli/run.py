@@ -73,8 +73,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default=None,
-        help=MODEL_HELP + ". Default: temporal with two or more cameras and a known frame "
-        "rate, else default (per frame)",
+        help=MODEL_HELP + ". Default: the temporal model with two or more cameras and a known "
+        "frame rate, else halpe26 (per frame)",
     )
     parser.add_argument(
         "--skeleton", default=None, help="2D joint set when ambiguous (body25, body25b)"
@@ -136,16 +136,28 @@ def register(parser: argparse.ArgumentParser) -> None:
 def default_model(num_cameras: int, fps: float | None, method: str) -> str:
     """``rmpl run``'s model when ``--model`` is not given: the temporal model (whole tracks,
     chosen by the rule in docs/results.md) with two or more cameras and a known frame rate;
-    otherwise the per-frame model ``default``, saying why."""
+    otherwise the per-frame model ``halpe26``, saying why. With one camera the COCO-17 model
+    ``default``: the one-camera path was measured with it, and the HALPE-26 model was chosen
+    on 2-5 views (docs/results.md)."""
     if method != "rmpl" or num_cameras < 2:
-        return "default"  # one camera: the floor-based single-view path uses it
+        return per_frame_model(num_cameras)
     if fps is None:
         log.warning(
             "no frame rate known (give --fps): lifting each frame with the per-frame model "
             "instead of whole tracks with the temporal model"
         )
-        return "default"
-    return "temporal"
+        return PER_FRAME
+    return TEMPORAL
+
+
+def per_frame_model(num_cameras: int) -> str:
+    """The per-frame model of ``rmpl run`` / ``rmpl lift`` when ``--model`` is not given."""
+    return ONE_CAMERA if num_cameras < 2 else PER_FRAME
+
+
+#: ``rmpl run``'s shipped models when ``--model`` is not given (docs/results.md says how each
+#: was chosen): per frame, and over whole tracks.
+PER_FRAME, TEMPORAL, ONE_CAMERA = "halpe26", "temporal", "default"
 
 
 def _warn_unused_filter(args: argparse.Namespace) -> None:
