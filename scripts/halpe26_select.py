@@ -99,7 +99,8 @@ def temporal(seqbank: Path, models: dict[str, str], views=(2, 3, 5)) -> dict:
         for v, b in sets.items():
             if b.rays.shape[3] != model.frame_model.config.num_joints:
                 rays = np.nan_to_num(embed(b.rays, "coco17", skel)).astype(np.float32)
-                b = replace(b, rays=rays, scores=embed_scores(b.scores, "coco17", skel))
+                scores = embed_scores(b.scores, "coco17", skel).astype(np.float32)
+                b = replace(b, rays=rays, scores=scores)
             points, _ = assembled_windows(model, b, assemble)
             e = np.linalg.norm(points[..., :17, :] - b.target, axis=-1)[..., list(KP_STAR)]
             out[name][v] = float(np.nanmean(e) * 1000)

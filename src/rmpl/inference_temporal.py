@@ -49,7 +49,12 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-PRETRAINED_TEMPORAL: dict[str, Path] = {"temporal": PRETRAINED["default"].parent / "temporal"}
+#: Shipped temporal models: ``temporal`` (COCO-17, on the per-frame ``default``) and
+#: ``temporal26`` (HALPE-26, on ``halpe26``; ``rmpl run``'s default, docs/results.md).
+PRETRAINED_TEMPORAL: dict[str, Path] = {
+    "temporal": PRETRAINED["default"].parent / "temporal",
+    "temporal26": PRETRAINED["default"].parent / "temporal26",
+}
 
 
 def is_temporal_checkpoint(name_or_path: str | Path) -> bool:

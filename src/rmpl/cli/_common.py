@@ -15,8 +15,8 @@ from rmpl.geometry.camera import Rig
 #: here so that building the parser does not import torch).
 MODEL_HELP = (
     "shipped model (halpe26: per frame, COCO-17 + head top, neck, mid-hip and feet; default: "
-    "per frame, COCO-17; occlusion: COCO-17, for many missing keypoints; temporal: whole "
-    "tracks, COCO-17, needs a frame rate) or checkpoint folder"
+    "per frame, COCO-17; occlusion: COCO-17, for many missing keypoints; temporal26 / "
+    "temporal: whole tracks, HALPE-26 / COCO-17, need a frame rate) or checkpoint folder"
 )
 
 #: ``--floor`` help of ``rmpl run`` and ``rmpl lift``.

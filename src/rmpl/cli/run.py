@@ -157,7 +157,7 @@ def per_frame_model(num_cameras: int) -> str:
 
 #: ``rmpl run``'s shipped models when ``--model`` is not given (docs/results.md says how each
 #: was chosen): per frame, and over whole tracks.
-PER_FRAME, TEMPORAL, ONE_CAMERA = "halpe26", "temporal", "default"
+PER_FRAME, TEMPORAL, ONE_CAMERA = "halpe26", "temporal26", "default"
 
 
 def _warn_unused_filter(args: argparse.Namespace) -> None:
