@@ -151,13 +151,13 @@ def detector_summary(d: dict[str, np.ndarray]) -> str:
     """The 2D's error against the projected joints: one line."""
     from rmpl.skeleton import COCO17
 
-    ok = d["scores"] > 0
-    uv = d["projected"].astype(float)
+    ok = d["scores"][..., :17] > 0  # COCO-17 joints
+    uv = d["projected"][..., :17, :].astype(float)
     height = np.ptp(uv[..., 1], axis=-1)  # (S, T, V) the person's projected height, px
-    err = np.linalg.norm(d["keypoints"] - uv, axis=-1)
+    err = np.linalg.norm(d["keypoints"][..., :17, :] - uv, axis=-1)
     rel = err / height[..., None]
     flip = np.asarray(COCO17.flip_permutation())
-    other = np.linalg.norm(d["keypoints"] - uv[..., flip, :], axis=-1) < err
+    other = np.linalg.norm(d["keypoints"][..., :17, :] - uv[..., flip, :], axis=-1) < err
     far = ok & (rel > 0.1)
     swapped = (far & other & (np.arange(17) != flip)).sum() / max(far.sum(), 1)
     seen = ok.any(-1)
@@ -198,7 +198,8 @@ def score(d, subsets, methods: dict[str, Method]) -> dict:
                 t0 = time.perf_counter()
                 est = fn(track)
                 seconds[name] += time.perf_counter() - t0
-                e = np.linalg.norm(est.points - track.target, axis=-1)[:, kp] * 1000
+                e = np.linalg.norm(est.points[:, :17] - track.target[:, :17], axis=-1)
+                e = e[:, kp] * 1000  # KP*, COCO-17 joints (HALPE-26's first 17)
                 err[name].append(e)
                 if est.radius50 is not None:
                     r = np.stack([est.radius50, est.radius90])[:, :, kp] * 1000

@@ -285,9 +285,11 @@ BODY25 = Skeleton(
     _pairs(_BODY25_NAMES),
 )
 
-# OpenPose BODY_25B (the Pose2Sim default): COCO-17 order first, then neck/head and feet.
+# OpenPose BODY_25B (the Pose2Sim default): COCO-17 order first, then the upper neck (just
+# under the head: OpenPose's "UpperNeck", not HALPE-26's neck at the base of the neck, so it
+# is not placed in that slot), the head top and the feet.
 _BODY25B_NAMES = _COCO_NAMES + (
-    "neck",
+    "upper_neck",
     "head_top",
     "left_big_toe",
     "left_small_toe",
@@ -560,7 +562,8 @@ def to_model_joints(
     """Put a detector's keypoints (*, J, 2) and scores (*, J) into a model's joint set.
 
     ``joints`` names the input's joint set; None: the model's own when the joint count
-    matches, else COCO-17 for 17 joints. Joints the input lacks are missing (NaN / 0).
+    matches, else COCO-17 for 17 joints and HALPE-26 for 26. Joints the input lacks are
+    missing (NaN / 0); joints the model lacks are dropped.
 
     Raises:
         ValueError: an unknown joint set, or a joint count that matches neither.
@@ -568,7 +571,8 @@ def to_model_joints(
     dst = skeleton_for(model)
     J = np.shape(keypoints)[-2]
     if joints is None:
-        joints = dst.name if J == dst.num_joints else "coco17" if J == 17 else None
+        by_count = {COCO17.num_joints: "coco17", HALPE26.num_joints: "halpe26"}
+        joints = dst.name if J == dst.num_joints else by_count.get(J)
         if joints is None:
             raise ValueError(
                 f"keypoints with {J} joints: name their joint set (one of {', '.join(SKELETONS)})"

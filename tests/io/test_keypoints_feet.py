@@ -79,12 +79,13 @@ def test_body25_keeps_feet_neck_mid_hip_through_a_round_trip(tmp_path, ext):
     np.testing.assert_array_equal(coco.keypoints, kp.keypoints[..., :17, :])
 
 
-def test_body25b_gives_head_top_and_neck(tmp_path):
+def test_body25b_gives_head_top_but_not_its_upper_neck(tmp_path):
     p = _person(25, 2)
     _write_openpose(tmp_path / "cam0", 0, [p])
     kp = load_keypoints(tmp_path / "cam0", skeleton="body25b")
     assert kp.skeleton == "halpe26"
-    _check_by_name(kp, p, BODY25B.joints)  # everything but the mid-hip
+    _check_by_name(kp, p, BODY25B.joints)  # everything but the mid-hip and the neck
+    assert np.isnan(kp.keypoints[0, 0, 0, HALPE26.index("neck")]).all()
 
 
 def test_pose2sim_config_names_the_model(tmp_path):
@@ -214,13 +215,14 @@ def test_richest_joint_set():
 
 @pytest.mark.shared
 def test_pose2sim_demo_carries_feet(shared_data):
-    """The Pose2Sim demo (OpenPose BODY_25B) gives heels, toes, neck and head top."""
+    """The Pose2Sim demo (OpenPose BODY_25B) gives heels, toes and head top; its upper neck
+    (under the head) is not HALPE-26's neck (the base of the neck)."""
     kp = load_keypoints(shared_data / DEMO / "pose")
     assert kp.skeleton == "halpe26"
     seen = (kp.scores > 0).any(axis=(0, 1, 2))  # (J,)
-    for name in HEELS + FEET + ("neck", "head_top"):
+    for name in HEELS + FEET + ("head_top",):
         assert seen[HALPE26.index(name)], name
-    assert not seen[HALPE26.index("mid_hip")]  # BODY_25B has none
+    assert not seen[HALPE26.indices(["mid_hip", "neck"])].any()  # BODY_25B has neither
     # Pixels go down: heels below the knees in every view.
     y = kp.keypoints[..., 1]
     for v in range(kp.num_views):

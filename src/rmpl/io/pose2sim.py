@@ -28,8 +28,9 @@ Markers (HALPE-26 poses, ``HALPE_26``)
     One marker per joint: the lifter's own ``mid_hip``, ``neck`` and ``head_top`` are
     ``Hip``, ``Neck`` and ``Head``; where ``mid_hip`` is missing (triangulated 2D without
     it, e.g. OpenPose BODY_25B), ``Hip`` is the midpoint of the hips, as rmpl defines
-    ``mid_hip`` (:data:`HALPE26_FALLBACKS`). In the order of Pose2Sim's ``HALPE_26``
-    tree: ``Hip RHip RKnee RAnkle RBigToe RSmallToe RHeel LHip LKnee LAnkle LBigToe
+    ``mid_hip``, and where ``neck`` is missing (BODY_25B has only an upper neck) ``Neck`` is
+    the midpoint of the shoulders (:data:`HALPE26_FALLBACKS`). In the order of Pose2Sim's
+    ``HALPE_26`` tree: ``Hip RHip RKnee RAnkle RBigToe RSmallToe RHeel LHip LKnee LAnkle LBigToe
     LSmallToe LHeel Neck Head Nose``, then ``REye LEye REar LEar`` (HALPE-26 has them;
     Pose2Sim's tree leaves them out and OpenSim ignores them), then ``RShoulder RElbow
     RWrist LShoulder LElbow LWrist``. The IK uses the 22 that ``Markers_Halpe26.xml``
@@ -190,7 +191,10 @@ HALPE26_MARKERS: dict[str, tuple[str, ...]] = {
 
 #: HALPE_26 markers taken from other joints where their own is missing: the mid-hip is the
 #: midpoint of the hips by definition (rmpl.synth.body).
-HALPE26_FALLBACKS: dict[str, tuple[str, ...]] = {"Hip": ("left_hip", "right_hip")}
+HALPE26_FALLBACKS: dict[str, tuple[str, ...]] = {
+    "Hip": ("left_hip", "right_hip"),
+    "Neck": ("left_shoulder", "right_shoulder"),  # BODY_25B's 2D has an upper neck, no neck
+}
 
 #: The markers of Pose2Sim's ``Markers_Halpe26.xml`` (the ones its IK and scaling use).
 HALPE26_IK_MARKERS: tuple[str, ...] = (

@@ -90,6 +90,16 @@ class RMPLConfig:
     anchor_parents: bool = False
 
     def __post_init__(self) -> None:
+        from rmpl.skeleton import SKELETONS
+
+        if self.skeleton not in SKELETONS:
+            raise ValueError(f"RMPLConfig.skeleton must be one of {sorted(SKELETONS)}, got "
+                             f"{self.skeleton!r}")  # fmt: skip
+        if SKELETONS[self.skeleton].num_joints != self.num_joints:
+            raise ValueError(
+                f"RMPLConfig.num_joints={self.num_joints} does not fit skeleton "
+                f"{self.skeleton!r} ({SKELETONS[self.skeleton].num_joints} joints)"
+            )
         if (
             not isinstance(self.robust_anchor, int)
             or isinstance(self.robust_anchor, bool)
