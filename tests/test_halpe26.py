@@ -320,3 +320,18 @@ def test_rmpl_poses_sequences_on_anny_writes_halpe26(one_clip, tmp_path, monkeyp
     assert main(["poses", str(root), "--sequences", "--body", "anny", "--fps", "5",
                  "--out", str(out)]) == 0  # fmt: skip
     assert SequenceBank.load(out).poses.shape[1:] == (26, 3)
+
+
+@pytest.mark.parametrize(
+    "sets", [{"coco17": -1.0, "halpe26": 2.0}, {"openpose": 1.0}, {"coco17": 0.0}]
+)
+def test_detector_kinds_are_checked_where_they_are_given(sets):
+    from rmpl.data.sequences import SequenceBank, SequenceSource
+    from rmpl.data.synthetic import SamplerConfig
+
+    with pytest.raises(ValueError, match="input_sets"):
+        SamplerConfig(input_sets=sets)
+    bank = SequenceBank(np.zeros((10, 26, 3), np.float32), np.array([0]), np.array([10]),
+                        np.array(["01"]), 30.0)  # fmt: skip
+    with pytest.raises(ValueError, match="input_sets"):
+        SequenceSource(bank, input_sets=tuple(sets.items()))

@@ -86,8 +86,9 @@ def test_cache_records_halpe26_and_an_old_coco17_cache_loads(tmp_path, monkeypat
     np.testing.assert_array_equal(again.keypoints, first.keypoints[..., :17, :])
 
 
-def test_a_coco17_view_cache_beside_halpe26_views(tmp_path):
-    """Resuming: a view saved in COCO-17 is placed in HALPE-26 beside freshly detected ones."""
+def test_a_coco17_view_cache_beside_halpe26_views(tmp_path, caplog):
+    """Resuming: a view saved in COCO-17 is placed in HALPE-26 beside freshly detected ones,
+    with a warning that says how to get its feet."""
     videos = _videos(tmp_path)
     resume = tmp_path / "resume"
     full = detect2d.detect_videos(videos, FakeBlazePose(), cache_dir=resume, progress=False)
@@ -96,7 +97,9 @@ def test_a_coco17_view_cache_beside_halpe26_views(tmp_path):
         stamp, kp, sc = str(data["stamp"]), data["keypoints"], data["scores"]
     detect2d._save_view(view0, stamp, kp[..., :17, :], sc[..., :17])  # an old view file
     (next(resume.glob("01_*.npz"))).unlink()
-    mixed = detect2d.detect_videos(videos, FakeBlazePose(), cache_dir=resume, progress=False)
+    with caplog.at_level("WARNING"):
+        mixed = detect2d.detect_videos(videos, FakeBlazePose(), cache_dir=resume, progress=False)
+    assert "reusing COCO-17 detections" in caplog.text and "delete it" in caplog.text
     assert mixed.skeleton == "halpe26"
     np.testing.assert_array_equal(mixed.keypoints[:, 1], full.keypoints[:, 1])
     np.testing.assert_array_equal(mixed.keypoints[:, 0, :, :17], full.keypoints[:, 0, :, :17])

@@ -52,10 +52,10 @@ def load_mhp(
             was made). COCO-17 sets read as HALPE-26 have the other nine joints missing.
 
     Returns:
-        ``joints3d`` (M, J, 3) metres, ``keypoints`` (M, V, 17, 2) pixels (NaN where the
-        score is 0), ``scores`` (M, V, 17), ``K`` (M, V, 3, 3), ``R`` (M, V, 3, 3),
+        ``joints3d`` (M, J, 3) metres, ``keypoints`` (M, V, J, 2) pixels (NaN where the
+        score is 0), ``scores`` (M, V, J), ``K`` (M, V, 3, 3), ``R`` (M, V, 3, 3),
         ``t`` (M, V, 3), ``size`` (M, V, 2), ``subject``, ``clip``, ``frame`` (M,), and
-        ``projected`` (M, V, 17, 2) when present.
+        ``projected`` (M, V, J, 2) when present; J = 17 (COCO-17) or 26 (HALPE-26).
 
     Raises:
         InputError: not an MHP directory, another joint set, or nothing selected.
@@ -172,8 +172,8 @@ def load_mhp_sequences(
         exclude_subjects: drop sequences of these subjects.
 
     Returns:
-        ``joints3d`` (S, T, 17, 3) metres; ``keypoints`` (S, T, V, 17, 2) pixels, NaN where
-        the score is 0; ``scores`` (S, T, V, 17); ``projected`` (S, T, V, 17, 2) pixels;
+        ``joints3d`` (S, T, J, 3) metres; ``keypoints`` (S, T, V, J, 2) pixels, NaN where
+        the score is 0; ``scores`` (S, T, V, J); ``projected`` (S, T, V, J, 2) pixels;
         ``times`` (S, T) seconds; ``fps`` (S,); one rig per sequence: ``K`` (S, V, 3, 3),
         ``R`` (S, V, 3, 3), ``t`` (S, V, 3) metres, ``size`` (S, V, 2) pixels;
         ``phenotypes`` (S, 6); ``subject``, ``clip``, ``mirrored`` (S,); ``frame`` (S, T)

@@ -30,7 +30,14 @@ from rmpl.geometry.camera import project, rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.io.atomic import atomic_path
 from rmpl.skeleton import COCO17, HALPE26
-from rmpl.synth.noise import INPUT_SETS, NoiseConfig, detect_like, input_joint_sets, joint_sigmas
+from rmpl.synth.noise import (
+    DEFAULT_INPUT_SETS,
+    NoiseConfig,
+    check_input_sets,
+    detect_like,
+    input_joint_sets,
+    joint_sigmas,
+)
 
 __all__ = [
     "SequenceBank",
@@ -355,12 +362,7 @@ class SequenceSource:
         room: float = 2.0,
         scale_range: tuple[float, float] = (0.88, 1.22),
         seed: int | None = None,
-        input_sets: tuple[tuple[str, float], ...] = (
-            ("coco17", 0.4),
-            ("blazepose", 0.2),
-            ("body25", 0.2),
-            ("halpe26", 0.2),
-        ),
+        input_sets: tuple[tuple[str, float], ...] = DEFAULT_INPUT_SETS,
     ) -> None:
         if len(bank) == 0:
             raise ValueError("the sequence bank has no segment")
@@ -376,9 +378,7 @@ class SequenceSource:
             truncate_rate=0.02,
         )
         self.joint_sigma = joint_sigmas(base.joint_sigma, bank.poses.shape[1])
-        self.input_sets = tuple(input_sets)
-        if {k for k, _ in self.input_sets} - set(INPUT_SETS):
-            raise ValueError(f"input_sets kinds must be among {sorted(INPUT_SETS)}")
+        self.input_sets = check_input_sets(input_sets)
         self.camera_preset, self.room, self.scale_range = camera_preset, room, scale_range
         self.rng = np.random.default_rng(seed)
 

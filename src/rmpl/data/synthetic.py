@@ -19,7 +19,13 @@ import numpy as np
 from rmpl.geometry.camera import rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.skeleton import COCO17, HALPE26
-from rmpl.synth.noise import INPUT_SETS, NoiseConfig, detect_like, input_joint_sets
+from rmpl.synth.noise import (
+    DEFAULT_INPUT_SETS,
+    NoiseConfig,
+    check_input_sets,
+    detect_like,
+    input_joint_sets,
+)
 
 __all__ = ["Batch", "PairSource", "SamplerConfig", "place_poses", "perturb_extrinsics"]
 
@@ -77,22 +83,10 @@ class SamplerConfig:
     calib_noise_deg: float = 0.0
     calib_noise_m: float = 0.0
     noise_randomize: float = 0.0
-    input_sets: tuple[tuple[str, float], ...] = (
-        ("coco17", 0.4),
-        ("blazepose", 0.2),
-        ("body25", 0.2),
-        ("halpe26", 0.2),
-    )
+    input_sets: tuple[tuple[str, float], ...] = DEFAULT_INPUT_SETS
 
     def __post_init__(self) -> None:
-        if isinstance(self.input_sets, dict):  # from TOML
-            object.__setattr__(self, "input_sets", tuple(self.input_sets.items()))
-        unknown = {k for k, _ in self.input_sets} - set(INPUT_SETS)
-        if unknown or not sum(w for _, w in self.input_sets) > 0:
-            raise ValueError(
-                f"input_sets must weigh kinds of {sorted(INPUT_SETS)} (> 0 in all), got "
-                f"{self.input_sets}"
-            )
+        object.__setattr__(self, "input_sets", check_input_sets(self.input_sets))
         if not 0 <= self.noise_randomize <= 3:
             raise ValueError(f"noise_randomize must be in [0, 3], got {self.noise_randomize}")
 

@@ -439,6 +439,11 @@ def _detect_views(
             cache = None if cache_dir is None else Path(cache_dir) / f"{v:02d}_{name}.npz"
             stamp = json.dumps({"input": fingerprint[v], **_detector_stamp(detector)})
             hit = None if cache is None else _cached_view(cache, stamp)
+            if hit is not None and hit[0].shape[-2] == 17:  # made before detectors gave feet
+                log.warning(
+                    "view %s: reusing COCO-17 detections from %s (made before the detectors "
+                    "gave feet); delete it to detect the heels too", name, cache,
+                )  # fmt: skip
             if hit is not None and hit[0].shape[0] == num_frames:
                 log.info("view %s: reusing detections from %s", name, cache)
                 kp, sc = hit

@@ -372,7 +372,8 @@ class BlazePoseMulti:
     """BlazePose for several people per image, following people from frame to frame.
 
     Follows :class:`rmpl.synth.detect.Detector` with a people axis: ``__call__`` returns
-    COCO-17 keypoints (B, N, 17, 2) and scores (B, N, 17) with ``N = max_people`` slots;
+    keypoints (B, N, J, 2) and scores (B, N, J) in ``skeleton``'s joint set (HALPE-26 or
+    COCO-17, see ``joints``) with ``N = max_people`` slots;
     an empty slot is NaN with score 0. With ``track=True`` the images of one call, and of
     the calls that follow, are taken as consecutive frames of one video, and a person keeps
     its slot while followed: call :meth:`reset` before another video (``detect2d`` does).
@@ -442,7 +443,7 @@ class BlazePoseMulti:
         self.close()
 
     def __call__(self, images: Images) -> tuple[np.ndarray, np.ndarray]:
-        """Detect. Returns COCO-17 keypoints (B, N, 17, 2) px and scores (B, N, 17)."""
+        """Detect. Returns keypoints (B, N, J, 2) px and scores (B, N, J), J of ``skeleton``."""
         images = as_image_list(images)
         B, N, J = len(images), self.max_people, self.skeleton.num_joints
         keypoints = np.full((B, N, J, 2), np.nan)

@@ -28,6 +28,8 @@ __all__ = [
     "occlusion_mask",
     "joint_sigmas",
     "input_joint_sets",
+    "check_input_sets",
+    "DEFAULT_INPUT_SETS",
 ]
 
 # Relative 2D error per COCO-17 joint (fraction of the person's pixel height): face points
@@ -297,13 +299,36 @@ def _inside(points: np.ndarray, size: np.ndarray) -> np.ndarray:
 
 #: Which of HALPE-26's nine extra points a detector gives, by kind of detector: COCO-17
 #: ones none, BlazePose the heels and (as the big toe) the foot index, OpenPose BODY_25 all
-#: but the head top, HALPE-26 / BODY_25B all.
+#: but the head top, HALPE-26 all. (BODY_25B, head top and feet, is not a kind of its own.)
 INPUT_SETS: dict[str, tuple[str, ...]] = {
     "coco17": (),
     "blazepose": ("left_big_toe", "right_big_toe", "left_heel", "right_heel"),
     "body25": HALPE26.joints[18:],
     "halpe26": HALPE26.joints[17:],
 }
+
+
+#: The default mix of detector kinds in training (kind, weight).
+DEFAULT_INPUT_SETS: tuple[tuple[str, float], ...] = (
+    ("coco17", 0.4),
+    ("blazepose", 0.2),
+    ("body25", 0.2),
+    ("halpe26", 0.2),
+)
+
+
+def check_input_sets(pairs) -> tuple[tuple[str, float], ...]:
+    """``(kind, weight)`` pairs (or a kind -> weight table) checked: known kinds, weights
+    >= 0 with a positive sum. Raises ValueError naming the problem."""
+    pairs = tuple(pairs.items()) if isinstance(pairs, dict) else tuple(map(tuple, pairs))
+    unknown = sorted({k for k, _ in pairs} - set(INPUT_SETS))
+    weights = [w for _, w in pairs]
+    if unknown or any(not w >= 0 for w in weights) or not sum(weights) > 0:
+        raise ValueError(
+            f"input_sets must weigh kinds of {sorted(INPUT_SETS)} with weights >= 0 and a "
+            f"positive sum, got {pairs}"
+        )
+    return pairs
 
 
 def input_joint_sets(
