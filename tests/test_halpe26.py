@@ -335,3 +335,20 @@ def test_detector_kinds_are_checked_where_they_are_given(sets):
                         np.array(["01"]), 30.0)  # fmt: skip
     with pytest.raises(ValueError, match="input_sets"):
         SequenceSource(bank, input_sets=tuple(sets.items()))
+
+
+def test_the_shipped_halpe26_model_runs_alike_in_onnx_with_hidden_extras():
+    pytest.importorskip("onnxruntime")
+    from rmpl import Lifter
+    from rmpl.geometry.rays import rays_from_keypoints
+    from rmpl.model.export import OnnxLifter
+
+    lifter = Lifter.from_pretrained("halpe26", backend="torch")
+    rig, kp, _ = _rig_and_keypoints(26)
+    rays = rays_from_keypoints(kp, rig).astype(np.float32)
+    scores = np.ones(kp.shape[:-1], np.float32)
+    scores[..., 17:] = 0  # a COCO-17 detector: the extras start from their parents
+    with torch.no_grad():
+        ref = lifter.model(torch.from_numpy(rays), torch.from_numpy(scores)).numpy()
+    np.testing.assert_allclose(OnnxLifter(lifter.model)(rays, scores), ref, atol=1e-4)
+    assert lifter.model.config.anchor_parents and np.isfinite(ref).all()

@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.geometry.camera import rodrigues
+from rmpl.skeleton import HALPE26
 
 __all__ = [
     "PHENOTYPES",
@@ -244,7 +245,10 @@ class BodyModel:
         self._device = torch.device(device)
         model = anny.Anny(phenotypes="default", pose_parameterization="local-ref")
         self._model = model.to(device=self._device, dtype=self._dtype).eval()
-        labels = anny.KeypointsRegressor.coco(self._model).labels
+        labels = list(anny.KeypointsRegressor.coco(self._model).labels)
+        feet = [n for n in HALPE26.joints[_NUM_COCO:] if n.endswith(("toe", "heel"))]
+        if labels[_NUM_COCO:] != feet:  # _halpe26 joins them by position
+            raise RuntimeError(f"unexpected anny keypoint labels {labels[_NUM_COCO:]}")
         labels = labels[:_NUM_COCO] if joints == "coco17" else labels
         self._regressor = anny.KeypointsRegressor.coco(self._model, labels=labels).to(
             device=self._device, dtype=self._dtype
