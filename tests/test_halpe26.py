@@ -352,3 +352,13 @@ def test_the_shipped_halpe26_model_runs_alike_in_onnx_with_hidden_extras():
         ref = lifter.model(torch.from_numpy(rays), torch.from_numpy(scores)).numpy()
     np.testing.assert_allclose(OnnxLifter(lifter.model)(rays, scores), ref, atol=1e-4)
     assert lifter.model.config.anchor_parents and np.isfinite(ref).all()
+
+
+def test_the_run_refuses_2d_in_a_set_it_cannot_index():
+    from rmpl.pipeline.runner import input_skeleton
+
+    assert input_skeleton(17) == "coco17" and input_skeleton(26, "halpe26") == "halpe26"
+    with pytest.raises(InputError, match="coco17 or halpe26"):
+        input_skeleton(25, "body25")
+    with pytest.raises(InputError, match="17 \\(COCO-17\\) or 26"):
+        input_skeleton(20)

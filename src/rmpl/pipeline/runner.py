@@ -173,6 +173,11 @@ def input_skeleton(num_joints: int, joints: str | None = None) -> str:
             None, "keypoints", "17 (COCO-17) or 26 (HALPE-26) joints, or a named joint set of "
             "that many", f"{num_joints} joints ({joints or 'unnamed'})",
         )  # fmt: skip
+    if name not in _BY_COUNT.values():  # later stages index COCO-17 joints by position
+        raise InputError(
+            None, "joints", "coco17 or halpe26 (rmpl.skeleton.embed places other sets' "
+            "joints, as rmpl.load_keypoints does)", name,
+        )  # fmt: skip
     return name
 
 
