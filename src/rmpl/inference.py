@@ -108,9 +108,8 @@ def model_inputs(keypoints, scores, skeleton: Skeleton, joints: str | None):
     try:
         return to_model_joints(kp, sc, skeleton, joints)
     except ValueError as e:
-        raise InputError(
-            None, "keypoints", f"joints of {skeleton.name} or COCO-17", str(e)
-        ) from None
+        expected = "17 (COCO-17) or 26 (HALPE-26) joints, or a named joint set"
+        raise InputError(None, "keypoints", expected, str(e)) from None
 
 
 class Lifter:
@@ -201,7 +200,8 @@ class Lifter:
                 under 1 GB of memory at no cost in speed on 2 cores).
             progress: show a progress bar.
             joints: the keypoints' joint set (a name in :data:`rmpl.skeleton.SKELETONS`);
-                None: the model's own (:attr:`skeleton`) when J matches, else COCO-17.
+                None: the model's own (:attr:`skeleton`) when J matches, else COCO-17 for 17
+                joints and HALPE-26 for 26.
                 Joints the input lacks are missing; the model still estimates them.
 
         Keypoints more than one image size outside their image (cameras with a known
