@@ -30,6 +30,7 @@ __all__ = [
     "EMBED_ALIASES",
     "skeleton_for",
     "to_model_joints",
+    "BY_COUNT",
     "ANCHOR_PARENTS",
     "anchor_parents",
     "flip_left_right",
@@ -571,8 +572,7 @@ def to_model_joints(
     dst = skeleton_for(model)
     J = np.shape(keypoints)[-2]
     if joints is None:
-        by_count = {COCO17.num_joints: "coco17", HALPE26.num_joints: "halpe26"}
-        joints = dst.name if J == dst.num_joints else by_count.get(J)
+        joints = dst.name if J == dst.num_joints else BY_COUNT.get(J)
         if joints is None:
             raise ValueError(
                 f"keypoints with {J} joints: name their joint set (one of {', '.join(SKELETONS)})"
@@ -621,6 +621,11 @@ def anchor_parents(skeleton: str | Skeleton) -> list[int]:
     """
     s = skeleton_for(skeleton)
     return [s._index.get(ANCHOR_PARENTS.get(n, ""), -1) for n in s.joints]
+
+
+#: The two joint sets rmpl reads 2D in and answers in, by their joint count; both begin with
+#: COCO-17.
+BY_COUNT: dict[int, str] = {17: "coco17", 26: "halpe26"}
 
 
 def skeleton_for(name_or_skeleton: str | Skeleton) -> Skeleton:

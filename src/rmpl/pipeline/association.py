@@ -27,7 +27,15 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.skeleton import COCO17, SKELETONS, convert, convert_scores, embed, embed_scores
+from rmpl.skeleton import (
+    BY_COUNT,
+    COCO17,
+    SKELETONS,
+    convert,
+    convert_scores,
+    embed,
+    embed_scores,
+)
 
 __all__ = [
     "BODY25_LIMBS",
@@ -457,7 +465,7 @@ def coco17_joints(num_joints: int, skeleton: str | None = None) -> list[int]:
     (True, True)
     """
     if skeleton is None:
-        skeleton = {17: "coco17", 26: "halpe26"}.get(num_joints)
+        skeleton = BY_COUNT.get(num_joints)
     if skeleton is not None:
         if skeleton not in SKELETONS:
             raise InputError(None, "skeleton", f"None or one of {sorted(SKELETONS)}", skeleton)

@@ -57,6 +57,7 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
 from rmpl.io.keypoints import Keypoints2D
+from rmpl.skeleton import BY_COUNT
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -311,7 +312,7 @@ def _output_joints(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray
 
 def _joint_set(num_joints: int) -> str:
     """The joint set of :func:`_output_joints`' results by their number of joints."""
-    return {17: "coco17", 26: "halpe26"}[num_joints]
+    return BY_COUNT[num_joints]
 
 
 def _detect_stream(

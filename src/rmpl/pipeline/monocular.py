@@ -49,7 +49,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.floor import ANKLE_HEIGHT, Floor, signed_distance
 from rmpl.io.poses import JointSource, Poses3D
-from rmpl.skeleton import COCO17
+from rmpl.skeleton import BY_COUNT, COCO17
 
 __all__ = [
     "CUES",
@@ -80,7 +80,6 @@ STATURE_RATIO = 0.779
 RADIUS_50_1D = 0.674
 
 _J = {name: COCO17.index(name) for name in COCO17.joints}  # the first 17 of HALPE-26 too
-_SKELETON_BY_COUNT = {17: "coco17", 26: "halpe26"}
 _ANKLES = [_J["left_ankle"], _J["right_ankle"]]
 _HIPS = [_J["left_hip"], _J["right_hip"]]
 
@@ -643,7 +642,7 @@ def monocular_people(
     fn = lift or _estimator(cfg, joints=joints)
     per_frame, views = estimate(people, rig, cfg, fn=fn)  # lists of (N, J, 3), (N, J)
     J = per_frame[0].shape[-2] if per_frame else COCO17.num_joints
-    skeleton = getattr(fn, "skeleton", None) or _SKELETON_BY_COUNT.get(J, "coco17")
+    skeleton = getattr(fn, "skeleton", None) or BY_COUNT.get(J, "coco17")
     pts = np.concatenate(per_frame) if len(kp) else np.zeros((0, J, 3))
     rays = rays_from_keypoints(np.nan_to_num(kp), rig)[:, 0]  # (M, J_2d, 6)
     cues = frame_cues(pts, rays, sc[:, 0], center, floor, up, config)

@@ -29,7 +29,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig
 from rmpl.io.atomic import atomic_path
 from rmpl.io.poses import Poses3D
-from rmpl.skeleton import SKELETONS, Skeleton
+from rmpl.skeleton import BY_COUNT, SKELETONS, Skeleton
 
 __all__ = ["PERSON_COLORS", "DETECTION_COLOR", "draw_skeleton", "project_visible", "write_overlays"]
 
@@ -123,9 +123,8 @@ def _skeleton_2d(num_joints: int, skeleton: Skeleton) -> Skeleton:
     joints and HALPE-26 for 26; another count is drawn as dots only."""
     if num_joints == skeleton.num_joints:
         return skeleton
-    by_count = {17: "coco17", 26: "halpe26"}
-    if num_joints in by_count:
-        return SKELETONS[by_count[num_joints]]
+    if num_joints in BY_COUNT:
+        return SKELETONS[BY_COUNT[num_joints]]
     return Skeleton("dots", tuple(f"joint_{j}" for j in range(num_joints)))
 
 

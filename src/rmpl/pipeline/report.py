@@ -54,7 +54,7 @@ from rmpl.pipeline.consistency import (
     format_ranges,
     person_2d,
 )
-from rmpl.skeleton import SKELETONS, embed, embed_scores
+from rmpl.skeleton import BY_COUNT, SKELETONS, embed, embed_scores
 
 __all__ = ["RunReport", "build_report", "log_summary", "write_report"]
 
@@ -267,16 +267,13 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
     )
 
 
-_BY_COUNT = {17: "coco17", 26: "halpe26"}
-
-
 def _in_joints_of(poses: Poses3D, kp2: np.ndarray, sc2: np.ndarray, inputs):
     """Each person's 2D (T, P, V, J_2d, 2) and scores placed into the poses' joint set by
     name (joints the 2D lacks: NaN / 0)."""
     J2 = kp2.shape[-2]
     name = getattr(inputs, "skeleton", None)
     if name is None:
-        name = poses.skeleton if J2 == len(poses.joint_names) else _BY_COUNT.get(J2)
+        name = poses.skeleton if J2 == len(poses.joint_names) else BY_COUNT.get(J2)
     if name == poses.skeleton:
         return kp2, sc2
     if name not in SKELETONS or SKELETONS[name].num_joints != J2:

@@ -32,6 +32,7 @@ from rmpl.geometry.camera import Rig
 from rmpl.io.keypoints import FAR_MARGIN, drop_far_keypoints
 from rmpl.io.poses import JointSource, Poses3D
 from rmpl.pipeline.association import Association, AssociationConfig, associate
+from rmpl.skeleton import BY_COUNT
 
 __all__ = ["RunConfig", "associate_frames", "estimate", "track_people", "smooth", "run"]
 
@@ -167,13 +168,13 @@ def input_skeleton(num_joints: int, joints: str | None = None) -> str:
     """
     from rmpl.skeleton import SKELETONS
 
-    name = joints if joints is not None else _BY_COUNT.get(num_joints)
+    name = joints if joints is not None else BY_COUNT.get(num_joints)
     if name not in SKELETONS or SKELETONS[name].num_joints != num_joints:
         raise InputError(
             None, "keypoints", "17 (COCO-17) or 26 (HALPE-26) joints, or a named joint set of "
             "that many", f"{num_joints} joints ({joints or 'unnamed'})",
         )  # fmt: skip
-    if name not in _BY_COUNT.values():  # later stages index COCO-17 joints by position
+    if name not in BY_COUNT.values():  # later stages index COCO-17 joints by position
         raise InputError(
             None, "joints", "coco17 or halpe26 (rmpl.skeleton.embed places other sets' "
             "joints, as rmpl.load_keypoints does)", name,
@@ -181,7 +182,6 @@ def input_skeleton(num_joints: int, joints: str | None = None) -> str:
     return name
 
 
-_BY_COUNT = {17: "coco17", 26: "halpe26"}
 _COCO_JOINTS = 17  # COCO-17 is the first 17 joints of both output sets
 
 
@@ -224,7 +224,7 @@ def _estimator(config: RunConfig, used: bool = False, joints: str | None = None)
         min_score = 0.3 if config.min_score is None else config.min_score
 
         def robust(kp, sc, rig):
-            name = joints or _BY_COUNT.get(kp.shape[-2])  # left/right swaps need the names
+            name = joints or BY_COUNT.get(kp.shape[-2])  # left/right swaps need the names
             pairs = SKELETONS[name].flip_pairs if name in SKELETONS else None
             kwargs = {"min_score": min_score, "max_error": config.max_error}
             kwargs["swap_pairs"] = pairs if config.swap_check else None
