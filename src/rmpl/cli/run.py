@@ -53,9 +53,15 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.cli._common import FLOOR_HELP, MODEL_HELP, at_least_one, count, positive
+from rmpl.pipeline.association import DUPLICATE_TOLERANCE, AssociationConfig
 from rmpl.pipeline.outputs import FORMATS
 
 log = logging.getLogger(__name__)
+
+
+def _tolerance(text: str) -> float | None:
+    """``--duplicate-tolerance``: 'off' (None) or a number > 0."""
+    return None if text == "off" else positive(text)
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -96,6 +102,15 @@ def register(parser: argparse.ArgumentParser) -> None:
         type=at_least_one,
         default=3,
         help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
+    )
+    parser.add_argument(
+        "--duplicate-tolerance",
+        type=_tolerance,
+        default=DUPLICATE_TOLERANCE,
+        metavar="T",
+        help="drop a 3D person whose limbs reproject within T x the other's size onto a "
+        f"view-disjoint other's detections (one person split in two); 'off' keeps all "
+        f"(default {DUPLICATE_TOLERANCE})",
     )
     parser.add_argument(
         "--up",
@@ -208,6 +223,7 @@ def run(args: argparse.Namespace) -> int:
         max_gap=args.max_gap,
         min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
+        association=AssociationConfig(duplicate_tolerance=args.duplicate_tolerance),
     )
     _warn_unused_filter(args)
     single = one_camera(inputs.rig, args.method, args.model)
