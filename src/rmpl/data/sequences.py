@@ -131,30 +131,46 @@ class SequenceBank:
         root: str | Path, fps: float = 60.0, min_seconds: float = 1.0
     ) -> SequenceBank:
         """Every clean stretch of motion below ``root`` (ASF/AMC, BVH), resampled to ``fps``."""
-        from rmpl.synth import motion as M
+        segments = [
+            (clip.subject, seg)
+            for clip, motion in _motion_clips(root)
+            for seg in _clean_segments(motion, fps, min_seconds)
+        ]
+        return _packed(segments, fps, root, min_seconds)
 
-        clips = [c for c in M.find_clips(root) if not M._matches(c.clip, M.BROKEN_CLIPS)]
-        if not clips:
-            raise InputError(root, None, "some .amc or .bvh files", "none")
-        skeletons: dict = {}
-        poses, starts, lengths, subjects, n = [], [], [], [], 0
-        for clip in clips:
-            motion = M._load_clip(clip, skeletons)
-            for seg in _clean_segments(motion, fps, min_seconds):
-                poses.append(seg)
-                starts.append(n)
-                lengths.append(len(seg))
-                subjects.append(clip.subject)
-                n += len(seg)
-        if not poses:
-            raise InputError(root, None, f"clean motion of at least {min_seconds} s", "none")
-        return SequenceBank(
-            np.concatenate(poses).astype(np.float32),
-            np.array(starts, np.int64),
-            np.array(lengths, np.int64),
-            np.array(subjects, str),
-            float(fps),
-        )
+
+def _motion_clips(root: str | Path, progress: bool = False):
+    """Every usable clip below ``root``, loaded: ``(clip, motion)`` pairs.
+
+    Raises:
+        InputError: no .amc or .bvh file below ``root``.
+    """
+    from rmpl.synth import motion as M
+
+    clips = [c for c in M.find_clips(root) if not M._matches(c.clip, M.BROKEN_CLIPS)]
+    if not clips:
+        raise InputError(root, None, "some .amc or .bvh files", "none")
+    if progress:
+        from tqdm import tqdm
+
+        clips = tqdm(clips, desc="clips", unit="clip")
+    skeletons: dict = {}
+    for clip in clips:
+        yield clip, M._load_clip(clip, skeletons)
+
+
+def _packed(segments: list, fps: float, root, min_seconds: float) -> SequenceBank:
+    """``(subject, poses (T, J, 3))`` segments back to back as a :class:`SequenceBank`."""
+    if not segments:
+        raise InputError(root, None, f"clean motion of at least {min_seconds} s", "none")
+    lengths = np.array([len(seg) for _, seg in segments], np.int64)
+    return SequenceBank(
+        np.concatenate([seg for _, seg in segments]).astype(np.float32),
+        np.cumsum(lengths) - lengths,
+        lengths,
+        np.array([subject for subject, _ in segments], str),
+        float(fps),
+    )
 
 
 def _clean_segments(motion, fps: float, min_seconds: float) -> list[np.ndarray]:
@@ -212,24 +228,14 @@ def anny_sequence_bank(
     follows the mocap's, scaled by the ratio of leg lengths (as ``rmpl generate`` moves its
     sequences); the segment's lowest vertex stands on the floor (z = 0).
     """
-    from rmpl.synth import motion as M
     from rmpl.synth.body import sample_phenotypes
     from rmpl.synth.generate import _leg_length
     from rmpl.synth.retarget import anny_deltas, bone_parents, mocap_drivers, reference_heads
 
     rng = np.random.default_rng(seed)
-    clips = [c for c in M.find_clips(root) if not M._matches(c.clip, M.BROKEN_CLIPS)]
-    if not clips:
-        raise InputError(root, None, "some .amc or .bvh files", "none")
     parents = bone_parents(body_model)
-    skeletons: dict = {}
-    poses, starts, lengths, subjects, n = [], [], [], [], 0
-    if progress:
-        from tqdm import tqdm
-
-        clips = tqdm(clips, desc="anny sequences", unit="clip")
-    for clip in clips:
-        motion = M._load_clip(clip, skeletons)
+    out = []
+    for clip, motion in _motion_clips(root, progress):
         segments = _clean_segment_frames(motion, fps, min_seconds)
         if not segments:
             continue
@@ -254,20 +260,8 @@ def anny_sequence_bank(
             shift[:, 2] = 0.0
             joints = joints + shift[:, None]
             joints[..., 2] -= floor
-            poses.append(joints.astype(np.float32))
-            starts.append(n)
-            lengths.append(len(joints))
-            subjects.append(clip.subject)
-            n += len(joints)
-    if not poses:
-        raise InputError(root, None, f"clean motion of at least {min_seconds} s", "none")
-    return SequenceBank(
-        np.concatenate(poses),
-        np.array(starts, np.int64),
-        np.array(lengths, np.int64),
-        np.array(subjects, str),
-        float(fps),
-    )
+            out.append((clip.subject, joints.astype(np.float32)))
+    return _packed(out, fps, root, min_seconds)
 
 
 @dataclass(frozen=True)
