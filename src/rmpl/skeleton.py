@@ -30,6 +30,7 @@ __all__ = [
     "EMBED_ALIASES",
     "skeleton_for",
     "to_model_joints",
+    "to_joint_set",
     "BY_COUNT",
     "ANCHOR_PARENTS",
     "anchor_parents",
@@ -621,6 +622,21 @@ def anchor_parents(skeleton: str | Skeleton) -> list[int]:
     """
     s = skeleton_for(skeleton)
     return [s._index.get(ANCHOR_PARENTS.get(n, ""), -1) for n in s.joints]
+
+
+def to_joint_set(
+    keypoints: np.ndarray, scores: np.ndarray, src: str | Skeleton, dst: str | Skeleton
+) -> tuple[np.ndarray, np.ndarray]:
+    """2D keypoints (*, J_src, 2) and scores (*, J_src) in joint set ``dst``: as they are when
+    the sets agree, by name into HALPE-26 (:func:`embed`; joints ``src`` lacks are missing),
+    else by :func:`convert` (a derived joint is missing, score 0, when a source is)."""
+    s, d = skeleton_for(src), skeleton_for(dst)
+    if s.name == d.name:
+        return np.asarray(keypoints), np.asarray(scores)
+    if d.name == "halpe26":
+        return embed(keypoints, s, d), embed_scores(scores, s, d)
+    kp, sc = convert(keypoints, s, d), convert_scores(scores, s, d)
+    return kp, np.where(np.isnan(kp).any(-1), 0.0, sc)
 
 
 #: The two joint sets rmpl reads 2D in and answers in, by their joint count; both begin with

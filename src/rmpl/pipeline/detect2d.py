@@ -298,16 +298,10 @@ def _output_joints(detector, kp: np.ndarray, sc: np.ndarray) -> tuple[np.ndarray
     name, :func:`rmpl.skeleton.embed`) when its joints include COCO-17 and any of the nine
     extra ones, else COCO-17."""
     from rmpl.io.keypoints import richest
-    from rmpl.skeleton import convert, convert_scores, embed, embed_scores
+    from rmpl.skeleton import to_joint_set
 
     name = detector.skeleton.name
-    to = richest(name)
-    if name == to:
-        return kp, sc
-    if to == "halpe26":
-        return embed(kp, name, to), embed_scores(sc, name, to)
-    kp, sc = convert(kp, name, to), convert_scores(sc, name, to)
-    return kp, np.where(np.isnan(kp).any(-1), 0.0, sc)
+    return to_joint_set(kp, sc, name, richest(name))
 
 
 def _joint_set(num_joints: int) -> str:

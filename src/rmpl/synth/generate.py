@@ -445,16 +445,10 @@ def detect_person(detector, images: list[np.ndarray]) -> tuple[np.ndarray, np.nd
 
 def in_joint_set(detector, kp: np.ndarray, sc: np.ndarray, joints: str):
     """A detector's keypoints (..., J_det, 2) and scores (..., J_det) in joint set
-    ``joints``: COCO-17 by :func:`rmpl.skeleton.convert`, HALPE-26 by name
-    (:func:`rmpl.skeleton.embed`; joints the detector lacks are missing)."""
-    from rmpl.skeleton import convert, convert_scores, embed, embed_scores
+    ``joints`` (:func:`rmpl.skeleton.to_joint_set`)."""
+    from rmpl.skeleton import to_joint_set
 
-    src = detector.skeleton
-    if src.name == joints:
-        return np.asarray(kp), np.asarray(sc)
-    if joints == "coco17":
-        return convert(kp, src, joints), convert_scores(sc, src, joints)
-    return embed(kp, src, joints), embed_scores(sc, src, joints)
+    return to_joint_set(kp, sc, detector.skeleton, joints)
 
 
 class Worker:
