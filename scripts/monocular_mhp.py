@@ -2,6 +2,9 @@
 
     python scripts/monocular_mhp.py DIR [--model default] [--floor z=0] [--cues floor,size,time]
 
+``--cues`` defaults to what ``rmpl run`` uses with the model
+(:meth:`rmpl.pipeline.monocular.MonocularConfig.for_model`).
+
 DIR is an MHP sequence set (``rmpl generate`` with ``sequence_frames``, e.g.
 ``configs/mhp_seq_heldout.toml``: CMU subject 03, 48 frames, 5 views, one body per sequence,
 the floor at z = 0). Each (sequence, view) is one track lifted as ``rmpl run`` does with one
@@ -73,12 +76,18 @@ def main() -> None:
     ap.add_argument("root")
     ap.add_argument("--model", default="default", help="the per-frame model (one camera)")
     ap.add_argument("--floor", default="z=0", help="the floor ('none': the size prior only)")
-    ap.add_argument("--cues", default="floor,size,time")
+    ap.add_argument(
+        "--cues", default=None,
+        help="comma-separated cues or 'none' (default: what rmpl run uses with the model)",
+    )  # fmt: skip
     a = ap.parse_args()
     d = load_mhp_sequences(a.root)
     floor = None if a.floor == "none" else parse_floor(a.floor)
     cfg = RunConfig(method="rmpl", model=a.model)
-    mono = MonocularConfig(cues=tuple(a.cues.split(",")))
+    mono = MonocularConfig.for_model(a.model)
+    if a.cues is not None:
+        mono = MonocularConfig.from_cues(a.cues.replace(",", "+"), lifter_sd=mono.lifter_sd)
+    a.cues = ",".join(mono.cues) or "none"
     S, V = d["scores"].shape[0], d["scores"].shape[2]
     parts = [track(d, s, v, cfg, floor, mono) for s in range(S) for v in range(V)]
     e = np.concatenate([p[0] for p in parts])

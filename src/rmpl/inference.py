@@ -27,7 +27,14 @@ from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.model.lifter import RMPL
 from rmpl.skeleton import Skeleton, skeleton_for, to_model_joints
 
-__all__ = ["Lifter", "LiftResult", "estimate_up", "rotation_to_z", "PRETRAINED"]
+__all__ = [
+    "Lifter",
+    "LiftResult",
+    "checkpoint_reads_floor",
+    "estimate_up",
+    "rotation_to_z",
+    "PRETRAINED",
+]
 
 log = logging.getLogger(__name__)
 
@@ -97,6 +104,20 @@ def rotation_to_z(up: np.ndarray) -> np.ndarray:
     return rodrigues(axis / s * np.arctan2(s, c))
 
 
+def checkpoint_reads_floor(name_or_path: str | Path) -> bool:
+    """Whether a ``--model`` value (shipped name or checkpoint directory) names a per-frame
+    model that takes the floor as an input (``RMPLConfig.floor``); False when unreadable."""
+    import json
+
+    path = Path(PRETRAINED.get(str(name_or_path), name_or_path))
+    try:
+        meta = json.loads((path / "config.json").read_text())
+    except (OSError, ValueError):
+        return False
+    model = meta.get("model") if isinstance(meta, dict) else None
+    return isinstance(model, dict) and bool(model.get("floor", False))
+
+
 def model_inputs(keypoints, scores, skeleton: Skeleton, joints: str | None):
     """A user's keypoints and scores in a model's joint set (:func:`to_model_joints`); a
     joint count that fits no joint set is one :class:`InputError`."""
@@ -147,10 +168,18 @@ class Lifter:
     def backend(self) -> str:
         return "onnx" if self._onnx is not None else "torch"
 
-    def _forward(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
+    def _forward(self, rays: np.ndarray, scores: np.ndarray, floor: np.ndarray | None = None):
+        if not self.reads_floor:
+            floor = None
         if self._onnx is not None:
-            return self._onnx(rays, scores)
-        return self.model(torch.from_numpy(rays), torch.from_numpy(scores)).numpy()
+            return self._onnx(rays, scores, floor) if self.reads_floor else self._onnx(rays, scores)
+        f = None if floor is None else torch.from_numpy(floor)
+        return self.model(torch.from_numpy(rays), torch.from_numpy(scores), floor=f).numpy()
+
+    @property
+    def reads_floor(self) -> bool:
+        """The model takes the floor plane as an input (``lift(..., floor=)``)."""
+        return bool(getattr(self.model.config, "floor", False))
 
     @classmethod
     def from_pretrained(cls, name_or_path: str | Path = "default", backend: str = "auto") -> Lifter:
@@ -186,6 +215,7 @@ class Lifter:
         batch_size: int = 128,
         progress: bool = False,
         joints: str | None = None,
+        floor=None,
     ) -> LiftResult:
         """Lift 2D keypoints from calibrated views to 3D.
 
@@ -203,6 +233,9 @@ class Lifter:
                 None: the model's own (:attr:`skeleton`) when J matches, else COCO-17 for 17
                 joints and HALPE-26 for 26.
                 Joints the input lacks are missing; the model still estimates them.
+            floor: the floor (:class:`rmpl.geometry.floor.Floor`) for a model that reads it
+                (:attr:`reads_floor`; its normal is then the up direction unless ``up`` is
+                given); other models ignore it. None = unknown.
 
         Keypoints more than one image size outside their image (cameras with a known
         size; :data:`rmpl.io.keypoints.FAR_MARGIN`) are treated as missing, with a warning.
@@ -216,26 +249,33 @@ class Lifter:
                 matching the rig, a bad ``up`` or ``batch_size``, or no keypoint at all.
         """
         kp, sc = model_inputs(keypoints, scores, self.skeleton, joints)
-        kp, sc = self._checked(kp, sc, rig, up, batch_size)
+        kp, sc = self._checked(kp, sc, rig, up, batch_size, floor)
         ok = np.isfinite(kp).all(-1) & (sc > 0)
         if not ok.any():
             raise InputError(
                 None, "scores", "at least one keypoint with confidence > 0", "all zero"
             )
         lead, (V, J) = kp.shape[:-3], kp.shape[-3:-1]
+        if up is None and floor is not None and self.reads_floor:
+            up = floor.n  # the floor's normal is the world's up
         Rc = rotation_to_z(estimate_up(rig) if up is None else np.asarray(up, float))
         rays = rays_from_keypoints(np.where(ok[..., None], kp, 0.0), rig)
         rays = np.concatenate([rays[..., :3] @ Rc.T, rays[..., 3:] @ Rc.T], -1)
         rays = rays.reshape(-1, V, J, 6).astype(np.float32)  # one row per frame
         s = np.where(ok, np.clip(sc, 0, 1), 0.0).reshape(-1, V, J).astype(np.float32)
-        out = self._batched(rays, s, batch_size, progress)
+        rows = None
+        if floor is not None and self.reads_floor:  # the plane in the z-up frame
+            row = np.r_[Rc @ np.asarray(floor.normal, float), float(floor.height)]
+            rows = np.broadcast_to(row.astype(np.float32), (len(rays), 4)).copy()
+        out = self._batched(rays, s, batch_size, progress, rows)
         points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
         empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
         points[empty] = np.nan
         return LiftResult(points, ok.sum(-2))
 
-    def _batched(self, rays: np.ndarray, s: np.ndarray, batch_size: int, progress: bool):
-        """The network on (N, V, J, 6) rays, ``batch_size`` rows at a time: (N, J, 3)."""
+    def _batched(self, rays, s, batch_size: int, progress: bool, floor=None) -> np.ndarray:
+        """The network on (N, V, J, 6) rays (and (N, 4) floor rows), ``batch_size`` rows at a
+        time: (N, J, 3)."""
         out = np.empty((rays.shape[0], rays.shape[2], 3), np.float32)
         starts = range(0, rays.shape[0], batch_size)
         if progress:
@@ -244,10 +284,12 @@ class Lifter:
             starts = tqdm(starts, desc="lift", unit="batch")
         for i in starts:
             sl = slice(i, i + batch_size)
-            out[sl] = self._forward(rays[sl], s[sl])
+            out[sl] = self._forward(rays[sl], s[sl], None if floor is None else floor[sl])
         return out
 
-    def _checked(self, keypoints, scores, rig, up, batch_size) -> tuple[np.ndarray, np.ndarray]:
+    def _checked(
+        self, keypoints, scores, rig, up, batch_size, floor=None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Validate :meth:`lift`'s arguments; keypoints far outside the image become missing."""
         from rmpl.io.keypoints import FAR_MARGIN, _floats, drop_far_keypoints
 
@@ -260,6 +302,13 @@ class Lifter:
             raise InputError(None, "batch_size", "an integer >= 1", repr(batch_size))
         if batch_size < 1:
             raise InputError(None, "batch_size", "an integer >= 1", batch_size)
+        if floor is not None:
+            from rmpl.geometry.floor import Floor, check_floor
+
+            if not isinstance(floor, Floor):
+                raise InputError(None, "floor", "an rmpl.geometry.floor.Floor or None",
+                                 type(floor).__name__)  # fmt: skip
+            check_floor(floor, rig.centers, field="floor")
         if up is not None:
             u = _floats(up, "up")
             if u.shape != (3,) or not np.isfinite(u).all() or not np.linalg.norm(u) > 0:

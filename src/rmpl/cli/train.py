@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 
+from rmpl.data.synthetic import SamplerConfig
 from rmpl.training.loop import TrainConfig, train
 
 log = logging.getLogger(__name__)
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(
             f"{args.config}: field 'poses' must name a pose bank (.npz) or motion folder"
         )
-    bank = load_poses(cfg.poses)
+    bank = load_poses(cfg.poses, on_floor=SamplerConfig(**cfg.sampler).keep_height)
     train_set, val_set = bank.split(cfg.holdout)
     if not len(train_set) or not len(val_set):
         raise ValueError(
@@ -64,17 +65,28 @@ def _run_temporal(args: argparse.Namespace) -> int:
     return 0
 
 
-def load_poses(path: str):
-    """A pose bank: an ``.npz`` written by ``rmpl poses``, or a motion-capture folder."""
+def load_poses(path: str, on_floor: bool = False):
+    """A pose bank: an ``.npz`` written by ``rmpl poses``, or a motion-capture folder; with
+    ``on_floor`` (``sampler.keep_height``) a sequence bank (``rmpl poses --sequences``) whose
+    segments that stand on a floor are levelled to z = 0 (:meth:`SequenceBank.on_floor`)."""
     from pathlib import Path
 
+    from rmpl.data.sequences import FLOOR_CONTACT, SequenceBank
+    from rmpl.errors import InputError
+    from rmpl.skeleton import BY_COUNT
     from rmpl.synth.motion import load_motion_dir, load_pose_set
 
     p = Path(path)
+    if on_floor:
+        if not p.is_file():
+            raise InputError(path, "poses", "a sequence bank (rmpl poses --sequences) for "
+                             "sampler.keep_height", "no such file")  # fmt: skip
+        bank = SequenceBank.load(p)
+        kept, mask = bank.on_floor(FLOOR_CONTACT[BY_COUNT[bank.poses.shape[1]]])
+        log.info("%s: %d of %d segments stand on a floor", path, mask.sum(), len(mask))
+        return kept.pose_set()
     if p.is_file():
         return load_pose_set(p)
     if p.is_dir():
         return load_motion_dir(p)
-    from rmpl.errors import InputError
-
     raise InputError(path, "poses", "a pose bank (.npz) or a motion folder", "no such path")

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.data.sequences import SequenceBatch
-from rmpl.data.synthetic import Batch
+from rmpl.data.synthetic import Batch, floor_rows
 from rmpl.errors import InputError
 from rmpl.geometry.camera import rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
@@ -240,6 +240,9 @@ class ShardSource:
         seed: random seed.
         joints: the joint set of the batches (see :func:`load_mhp`); None: the sets' own
             (they must then agree).
+        floor: ``(rate, noise_m, tilt_deg)`` of the floor (z = 0, where the renders stand)
+            given in ``Batch.floor`` (see :func:`rmpl.data.synthetic.floor_rows`; no noise
+            on validation batches); None: no floor.
     """
 
     def __init__(
@@ -252,6 +255,7 @@ class ShardSource:
         shift: float = 1.0,
         seed: int | None = None,
         joints: str | None = None,
+        floor: tuple[float, float, float] | None = None,
     ) -> None:
         roots = [root] if isinstance(root, str | Path) else list(root)
         parts = [load_mhp(r, subjects, exclude_subjects, joints) for r in roots]
@@ -269,6 +273,7 @@ class ShardSource:
         self.drop_rate = float(drop_rate)
         self.augment = augment
         self.shift = float(shift)
+        self.floor = floor
         self.rng = np.random.default_rng(seed)
 
     @property
@@ -307,6 +312,10 @@ class ShardSource:
         kp = np.where(scores[..., None] > 0, kp, np.nan)
         rays = rays_from_keypoints(kp, K=K, R=R, t=t)
         rays = np.where(scores[..., None] > 0, rays, 0.0)
+        floor = None
+        if self.floor is not None:
+            rate, noise_m, tilt = self.floor
+            floor = floor_rows(size, rate, *((noise_m, tilt) if train else (0.0, 0.0)), rng)
         return Batch(
             rays.astype(np.float32),
             scores.astype(np.float32),
@@ -315,6 +324,7 @@ class ShardSource:
             K,
             R,
             t,
+            floor,
         )
 
 

@@ -58,6 +58,13 @@ _LIMBS = (
 )
 
 
+#: For :meth:`SequenceBank.on_floor`: the lowest joint's height above the floor when it
+#: touches it, metres, by joint set. COCO-17: the ankle, :data:`rmpl.geometry.floor.ANKLE_HEIGHT`.
+#: HALPE-26 on anny: a heel or toe point, 0.016 m (the median over the MHP renders of the
+#: lowest joint above the mesh's lowest vertex, ``data/mhp26_train``).
+FLOOR_CONTACT: dict[str, float] = {"coco17": 0.07, "halpe26": 0.016}
+
+
 @dataclass
 class SequenceBank:
     """Clean motion segments.
@@ -85,6 +92,40 @@ class SequenceBank:
         new_start = (np.cumsum(lengths) - lengths).astype(np.int64)
         poses = np.concatenate(parts) if parts else self.poses[:0]
         return SequenceBank(poses, new_start, lengths.copy(), self.subject[keep], self.fps)
+
+    def on_floor(
+        self, contact: float, tolerance: float = 0.10, min_fraction: float = 0.5
+    ) -> tuple[SequenceBank, np.ndarray]:
+        """The segments that stand on a floor, levelled so that the floor is z = 0.
+
+        A segment's lowest point over time is a poor floor (one foot through the ground
+        sets it). Here the floor is the 5th percentile over the segment's frames of the
+        lowest joint's height, minus ``contact`` (that joint's height above the floor when
+        it touches it). A segment is on a floor when at least ``min_fraction`` of its frames
+        have their lowest joint within ``tolerance`` metres of that level; the others
+        (a playground, a stage, a motion that floats) are left out. Jumps, sitting and lying
+        within a kept segment stay as recorded.
+
+        Returns:
+            (the kept, levelled segments, the kept mask over the segments (S,)).
+        """
+        low = np.nanmin(self.poses[..., 2], axis=-1)  # (N,)
+        keep = np.zeros(len(self), bool)
+        poses = self.poses.copy()
+        for i, (s, n) in enumerate(zip(self.start, self.length, strict=True)):
+            level = np.percentile(low[s : s + n], 5)
+            keep[i] = np.mean(low[s : s + n] - level < tolerance) >= min_fraction
+            poses[s : s + n, :, 2] -= level - contact
+        levelled = SequenceBank(poses, self.start, self.length, self.subject, self.fps)
+        return levelled.select(keep), keep
+
+    def pose_set(self):
+        """The bank's poses as a :class:`rmpl.synth.motion.bank.PoseSet` (clip = segment)."""
+        from rmpl.synth.motion.bank import PoseSet
+
+        seg = np.repeat(np.arange(len(self)), self.length)
+        frame = np.concatenate([np.arange(n) for n in self.length]) if len(self) else seg
+        return PoseSet(self.poses, np.repeat(self.subject, self.length), seg.astype(str), frame)
 
     def split(self, holdout: list[str] | tuple[str, ...]) -> tuple[SequenceBank, SequenceBank]:
         """(segments of other subjects, segments of ``holdout`` subjects)."""

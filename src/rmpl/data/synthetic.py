@@ -27,7 +27,14 @@ from rmpl.synth.noise import (
     input_joint_sets,
 )
 
-__all__ = ["Batch", "PairSource", "SamplerConfig", "place_poses", "perturb_extrinsics"]
+__all__ = [
+    "Batch",
+    "PairSource",
+    "SamplerConfig",
+    "floor_rows",
+    "place_poses",
+    "perturb_extrinsics",
+]
 
 
 @dataclass
@@ -40,6 +47,8 @@ class Batch:
         target: (B, J, 3) float32, world metres.
         keypoints: (B, V, J, 2) pixels, NaN = missing (kept for baselines).
         K, R, t: (B, V, 3, 3), (B, V, 3, 3), (B, V, 3) the cameras used for the rays.
+        floor: (B, 4) float32 floor planes ``[n_x, n_y, n_z, h]`` (``n . X = h``) given to
+            a model that reads the floor, NaN rows = not given; None = no floor at all.
     """
 
     rays: np.ndarray
@@ -49,6 +58,7 @@ class Batch:
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
+    floor: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -73,6 +83,14 @@ class SamplerConfig:
         input_sets: with HALPE-26 poses, how often each kind of detector
             (:data:`rmpl.synth.noise.INPUT_SETS`: which of the nine points beyond COCO-17
             it gives) draws a sample, as (kind, weight) pairs (a table in TOML).
+        keep_height: the poses stand on their own floor at z = 0 (a sequence bank,
+            ``rmpl poses --sequences``: jumps, steps, sitting and lying as recorded) and keep
+            their height; False stands each pose's lowest joint on z = 0.
+        floor_rate: probability that a sample's batch carries its floor (``Batch.floor``,
+            for models that read it); the rest say "unknown". Needs ``keep_height``.
+        floor_noise_m: std of the error of a given floor's height, metres (an estimated or
+            measured floor is not exact); validation batches get the exact floor.
+        floor_tilt_deg: std of the error of a given floor's normal, degrees.
     """
 
     camera_preset: str = "universal"
@@ -84,11 +102,37 @@ class SamplerConfig:
     calib_noise_m: float = 0.0
     noise_randomize: float = 0.0
     input_sets: tuple[tuple[str, float], ...] = DEFAULT_INPUT_SETS
+    keep_height: bool = False
+    floor_rate: float = 0.0
+    floor_noise_m: float = 0.02
+    floor_tilt_deg: float = 1.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "input_sets", check_input_sets(self.input_sets))
         if not 0 <= self.noise_randomize <= 3:
             raise ValueError(f"noise_randomize must be in [0, 3], got {self.noise_randomize}")
+        if not 0 <= self.floor_rate <= 1:
+            raise ValueError(f"floor_rate must be in [0, 1], got {self.floor_rate}")
+        if self.floor_rate > 0 and not self.keep_height:
+            raise ValueError("floor_rate > 0 needs keep_height = true (poses on a known floor)")
+        if self.floor_noise_m < 0 or self.floor_tilt_deg < 0:
+            raise ValueError("floor_noise_m and floor_tilt_deg must be >= 0")
+
+
+def floor_rows(
+    size: int, rate: float, noise_m: float, tilt_deg: float, rng: np.random.Generator
+) -> np.ndarray | None:
+    """``Batch.floor`` for scenes whose floor is z = 0: (size, 4) rows ``[n, h]``, given with
+    probability ``rate`` (else NaN) and perturbed by ``noise_m`` / ``tilt_deg``; None when
+    ``rate`` is 0 (a model that reads the floor then sees "unknown")."""
+    if rate <= 0:
+        return None
+    tilt = rng.standard_normal((size, 2)) * np.deg2rad(tilt_deg)
+    n = np.concatenate([tilt, np.ones((size, 1))], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    rows = np.concatenate([n, noise_m * rng.standard_normal((size, 1))], -1)
+    rows[rng.random(size) >= rate] = np.nan
+    return rows.astype(np.float32)
 
 
 _RATES = (
@@ -119,10 +163,11 @@ def randomized_noise(noise: NoiseConfig, strength: float, rng: np.random.Generat
 
 
 def place_poses(poses: np.ndarray, rng: np.random.Generator, cfg: SamplerConfig) -> np.ndarray:
-    """Mirror, scale, turn about z and place poses on the floor of a room.
+    """Mirror, scale, turn about z and place poses on the floor of a room (the lowest
+    joint on z = 0, or with ``cfg.keep_height`` the poses' own floor z = 0).
 
     Args:
-        poses: (B, J, 3) COCO-17 joints, metres, z up.
+        poses: (B, J, 3) COCO-17 or HALPE-26 joints, metres, z up.
 
     Returns:
         (B, J, 3) placed poses.
@@ -133,7 +178,7 @@ def place_poses(poses: np.ndarray, rng: np.random.Generator, cfg: SamplerConfig)
     flipped = poses[:, skel.flip_permutation()] * np.array([-1.0, 1.0, 1.0])
     poses = np.where(mirror[:, None, None], flipped, poses)
     root = poses[:, 11:13].mean(1)  # mid-hip
-    floor = np.nanmin(poses[..., 2], axis=1)
+    floor = np.zeros(B) if cfg.keep_height else np.nanmin(poses[..., 2], axis=1)
     origin = np.stack([root[:, 0], root[:, 1], floor], -1)[:, None]
     scale = rng.uniform(*cfg.scale_range, (B, 1, 1))
     yaw = rng.uniform(-np.pi, np.pi, B)
@@ -214,6 +259,7 @@ class PairSource:
             Rr, tr = perturb_extrinsics(R, t, cfg.calib_noise_deg, cfg.calib_noise_m, rng)
         rays = rays_from_keypoints(kp, K=K, R=Rr, t=tr)
         rays = np.where(scores[..., None] > 0, rays, 0.0)
+        noisy = (cfg.floor_noise_m, cfg.floor_tilt_deg) if train else (0.0, 0.0)
         return Batch(
             rays.astype(np.float32),
             scores.astype(np.float32),
@@ -222,4 +268,5 @@ class PairSource:
             K,
             Rr,
             tr,
+            floor_rows(size, cfg.floor_rate, *noisy, rng),
         )

@@ -9,12 +9,14 @@ The 2D is COCO-17 or HALPE-26 (:data:`INPUT_SETS`, by joint count). The triangul
 baselines use its COCO-17 joints (the first 17); a lifter takes the joints its model knows
 (:func:`fit_input`).
 
-``rmpl+floor[:CUES]`` (:class:`MonocularMethod`) is the single-view lifting of
-:mod:`rmpl.pipeline.monocular`: the shipped lifter, then depth from the floor, the body-size
-prior and (with "time") whole tracks; CUES is any of floor, size, time joined by + (default
-all three). With two or more views it is exactly ``rmpl``. Its floor is set by ``rmpl
-evaluate --floor`` (:attr:`MonocularMethod.floor`). Its poses have the model's joints
-(the cues read the COCO-17 ones and the depth moves all).
+``rmpl+floor[:CUES][@MODEL]`` (:class:`MonocularMethod`) is the single-view lifting of
+:mod:`rmpl.pipeline.monocular`: the shipped lifter (or MODEL), then depth from the floor,
+the body-size prior and (with "time") whole tracks; CUES is any of floor, size, time joined
+by + (default all three), or "none" (the lifter's own depth). A MODEL that reads the floor
+(``rmpl+floor:time@floor26``) is given it, in one view and in more. With two or more views
+it is the plain lifter. Its floor is set by ``rmpl evaluate --floor``
+(:attr:`MonocularMethod.floor`). Its poses have the model's joints (the cues read the
+COCO-17 ones and the depth moves all).
 """
 
 from __future__ import annotations
@@ -116,7 +118,13 @@ class MonocularMethod:
         from rmpl.inference import Lifter
         from rmpl.pipeline.monocular import MonocularConfig
 
-        self.config = MonocularConfig.from_cues(cues) if cues else MonocularConfig()
+        cues, _, named = cues.partition("@")
+        model = named or model
+        if cues:
+            extra = MonocularConfig.for_model(model)
+            self.config = MonocularConfig.from_cues(cues, lifter_sd=extra.lifter_sd)
+        else:
+            self.config = MonocularConfig()
         self.floor = None
         self.floor_rule = "convention"
         self._lifter = Lifter.from_pretrained(model)
@@ -134,20 +142,22 @@ class MonocularMethod:
             return None
         return convention_floor(rig.R, rig.centers)
 
-    def _lift_fn(self, up):
+    def _lift_fn(self, up, floor=None):
         """The lifter for :mod:`rmpl.pipeline.monocular`: poses in the model's joints."""
         lifter = self._lifter
 
         def fn(kp, sc, rig):
-            r = lifter.lift(*fit_input(kp, sc, lifter.num_joints), rig, up=up)
+            r = lifter.lift(*fit_input(kp, sc, lifter.num_joints), rig, up=up, floor=floor)
             return r.points, r.num_views
 
         return fn
 
     def _multi_view(self, kp, sc, rig) -> np.ndarray:
-        """More than one view: the plain lifter, the model's own joints."""
+        """More than one view: the plain lifter, the model's own joints (a model that reads
+        the floor is given it)."""
         kp, sc = fit_input(kp, sc, self._lifter.num_joints)
-        return self._lifter.lift(kp, sc, rig).points
+        floor = self._floor(rig) if self._lifter.reads_floor else None
+        return self._lifter.lift(kp, sc, rig, floor=floor).points
 
     def __call__(self, kp, sc, *rest):
         """``(kp, sc, rig)`` per frame, or the sequence signature of
@@ -167,7 +177,7 @@ class MonocularMethod:
             cfg = replace(self.config, cues=tuple(c for c in self.config.cues if c != "time"))
             frame = np.arange(len(kp))
             res = monocular_people(kp, sc, frame, len(kp), rig, None, floor, cfg,
-                                   lift=self._lift_fn(up))  # fmt: skip
+                                   lift=self._lift_fn(up, floor))  # fmt: skip
             return res.points[:, 0]
         frame, num_frames, rig, fps = rest[:4]
         if len(rig) > 1:  # every view: the plain lifter, per frame
@@ -177,7 +187,7 @@ class MonocularMethod:
         floor = self._floor(rig)
         up = None if floor is None else floor.n
         preds, at = [np.zeros((0, self._lifter.num_joints, 3))], [np.zeros(0, int)]
-        fn = self._lift_fn(up)
+        fn = self._lift_fn(up, floor)
         for a, b, step in stretches(num_frames, *rest[4:6]):
             rows = (frame >= a) & (frame < b)
             if rows.any():

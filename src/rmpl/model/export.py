@@ -21,26 +21,43 @@ def export_onnx(
     num_joints: int | None = None,
 ) -> Path:
     """Export ``model(rays, scores)`` to ONNX with dynamic batch and view axes (outputs
-    ``output_names``, each with a dynamic batch axis)."""
+    ``output_names``, each with a dynamic batch axis). A model that reads the floor
+    (``config.floor``) takes a third input, ``floor`` (B, 4)."""
     model = model.eval()
     J = num_joints or model.config.num_joints
     rays = torch.randn(2, 3, J, 6)
     rays[..., 3:] /= rays[..., 3:].norm(dim=-1, keepdim=True)
     scores = torch.rand(2, 3, J)
+    args, names, axes = (rays, scores), ["rays", "scores"], {"rays": {0: "B", 1: "V"}}
+    axes |= {"scores": {0: "B", 1: "V"}}
+    if getattr(model.config, "floor", False):
+        model = _WithFloor(model)
+        args, names = (*args, torch.tensor([[0.0, 0, 1, 0], [np.nan] * 4])), [*names, "floor"]
+        axes |= {"floor": {0: "B"}}
     with warnings.catch_warnings():  # tracer notes on shape checks: harmless, not for users
         warnings.simplefilter("ignore")
         torch.onnx.export(
             model,
-            (rays, scores),
+            args,
             str(path),
-            input_names=["rays", "scores"],
+            input_names=names,
             output_names=list(output_names),
-            dynamic_axes={"rays": {0: "B", 1: "V"}, "scores": {0: "B", 1: "V"}}
-            | {n: {0: "B"} for n in output_names},
+            dynamic_axes=axes | {n: {0: "B"} for n in output_names},
             opset_version=17,
             dynamo=False,
         )
     return Path(path)
+
+
+class _WithFloor(torch.nn.Module):
+    """``model(rays, scores, floor=floor)`` as a module with positional inputs (for export)."""
+
+    def __init__(self, model: RMPL) -> None:
+        super().__init__()
+        self.model, self.config = model, model.config
+
+    def forward(self, rays: torch.Tensor, scores: torch.Tensor, floor: torch.Tensor):
+        return self.model(rays, scores, floor=floor)
 
 
 def _session(model: torch.nn.Module, threads: int, **export):
@@ -55,13 +72,22 @@ def _session(model: torch.nn.Module, threads: int, **export):
 
 
 class OnnxLifter:
-    """The same network run by onnxruntime: ``__call__(rays, scores) -> joints`` (numpy)."""
+    """The same network run by onnxruntime: ``__call__(rays, scores[, floor]) -> joints``
+    (numpy; ``floor`` (B, 4), NaN rows = unknown, for a model that reads the floor)."""
 
     def __init__(self, model: RMPL, threads: int = 2) -> None:
+        self.floor = bool(getattr(model.config, "floor", False))
         self.session = _session(model, threads)
 
-    def __call__(self, rays: np.ndarray, scores: np.ndarray) -> np.ndarray:
-        return self.session.run(None, {"rays": rays, "scores": scores})[0]
+    def __call__(
+        self, rays: np.ndarray, scores: np.ndarray, floor: np.ndarray | None = None
+    ) -> np.ndarray:
+        feed = {"rays": rays, "scores": scores}
+        if self.floor:
+            if floor is None:
+                floor = np.full((len(rays), 4), np.nan, np.float32)
+            feed["floor"] = np.asarray(floor, np.float32)
+        return self.session.run(None, feed)[0]
 
 
 class _EncodeOutputs(torch.nn.Module):

@@ -16,6 +16,12 @@ Geometry the network is given (each switchable in :class:`RMPLConfig` for ablati
   the perpendicular offset from ``b_j`` to its ray, the joint token carries ``b_j - P`` and
   visibility flags, and the zero-initialised head predicts a correction to ``b_j``; the
   network starts at triangulation and learns what it cannot do.
+- **The floor** (``floor=True``): when the floor plane is known, each view token also
+  carries its camera's height above the floor and where its ray meets the floor (as a log
+  ratio to the anchor's depth), each joint token its base point's height above the floor;
+  with one view the anchor's depth combines the keypoints' angular size with the depth at
+  which the lowest ray meets the floor. A person on a floor fixes the depth one view lacks;
+  the network learns when not to trust it (a jump, a step, a chair).
 
 Shape glossary: ``B`` batch, ``V`` views, ``J`` joints, ``D`` model width.
 """
@@ -29,7 +35,15 @@ from torch import nn
 
 from rmpl.model.layers import Encoder
 
-__all__ = ["RMPLConfig", "RMPL", "PRESETS", "anchors_from_rays", "build_model", "camera_features"]
+__all__ = [
+    "RMPLConfig",
+    "RMPL",
+    "PRESETS",
+    "anchors_from_rays",
+    "build_model",
+    "camera_features",
+    "floor_parts",
+]
 
 INPUTS = ("rays", "pixels", "pixels+calib")
 ARCHITECTURES = ("transformer", "mlp")
@@ -37,6 +51,10 @@ PIXEL_SCALE = 1000.0  # pixels: keypoints and K entries are divided by this
 ORIGIN_SCALE = 4.0  # metres: camera offsets are divided by this
 PERP_SCALE = 0.25  # metres: ray-to-anchor offsets are divided by this
 BODY_SPREAD = 0.46  # metres: RMS distance of COCO joints from their centroid across the view, adult
+SPREAD_LOG_SD = 0.25  # log-depth error of the angular-size anchor (pose and body size vary)
+FLOOR_CONTACT_SD = 0.10  # metres: the lowest keypoint's height above the floor (rest, steps, jumps)
+FLOOR_VIEW_FEATURES = 3  # camera height above the floor, log floor-hit / anchor depth, hit flag
+FLOOR_JOINT_FEATURES = 2  # base point's height above the floor, floor known
 
 
 @dataclass(frozen=True)
@@ -70,6 +88,8 @@ class RMPLConfig:
             (:data:`rmpl.skeleton.ANCHOR_PARENTS`, followed up the chain) instead of the
             person's anchor: a hidden heel starts at its ankle, not at the pelvis. False =
             the person's anchor (the first checkpoints).
+        floor: the model takes the floor plane (``forward(..., floor=)``; unknown floors are
+            allowed) as described in the module docstring. Needs ``geometric``.
     """
 
     num_joints: int = 17
@@ -88,6 +108,7 @@ class RMPLConfig:
     skeleton: str = "coco17"
     robust_anchor: int = 0
     anchor_parents: bool = False
+    floor: bool = False
 
     def __post_init__(self) -> None:
         from rmpl.skeleton import SKELETONS
@@ -119,6 +140,8 @@ class RMPLConfig:
             )
         if self.architecture == "mlp" and (self.inputs != "rays" or self.geometric):
             raise ValueError("the mlp baseline takes rays with geometric=false")
+        if self.floor and not (self.geometric and self.architecture == "transformer"):
+            raise ValueError("RMPLConfig.floor needs geometric=true and the transformer")
 
     @classmethod
     def from_dict(cls, d: dict) -> RMPLConfig:
@@ -185,7 +208,11 @@ def _ray_terms(
 
 
 def anchors_from_rays(
-    rays: torch.Tensor, scores: torch.Tensor, max_offset: float = 1.5, robust: int = 0
+    rays: torch.Tensor,
+    scores: torch.Tensor,
+    max_offset: float = 1.5,
+    robust: int = 0,
+    floor: FloorParts | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Per-joint ray intersections and the person anchor.
 
@@ -199,6 +226,8 @@ def anchors_from_rays(
             :func:`_robust_intersections`). With two views there is no outlier to find:
             rays that meet are unchanged, rays that miss each other move the point by a
             fraction of their miss distance.
+        floor: the floor (:func:`floor_parts`); it only changes the anchor of a person no
+            two views locate (:func:`_single_view_anchor`).
 
     Returns:
         joint_points (B, J, 3), joint_valid (B, J) bool (>= 2 non-parallel views),
@@ -227,7 +256,7 @@ def anchors_from_rays(
     total = wj.sum(-1, keepdim=True)
     P_tri = (torch.where(valid[..., None], X, torch.zeros_like(X)) * wj[..., None]).sum(1)
     P_tri = P_tri / total.clamp_min(1e-9)
-    P = torch.where(total > 0, P_tri, _single_view_anchor(o, d, w))
+    P = torch.where(total > 0, P_tri, _single_view_anchor(o, d, w, floor))
     X = torch.where(valid[..., None], X, P[:, None].expand_as(X))
     return X, valid, P
 
@@ -302,9 +331,39 @@ def _pixel_features(
     return [kp, cameras[:, :, None].expand(-1, -1, J, -1)]
 
 
-def _single_view_anchor(o: torch.Tensor, d: torch.Tensor, w: torch.Tensor) -> torch.Tensor:
+@dataclass
+class FloorParts:
+    """The floor of each sample as tensors: unit normal ``n`` (B, 3) pointing up, offset
+    ``h`` (B,) (the plane ``n . X = h``), ``known`` (B,) bool. Unknown rows hold z = 0."""
+
+    n: torch.Tensor
+    h: torch.Tensor
+    known: torch.Tensor
+
+
+def floor_parts(floor: torch.Tensor | None, B: int, like: torch.Tensor) -> FloorParts:
+    """:class:`FloorParts` from a (B, 4) tensor ``[n_x, n_y, n_z, h]`` (a row with a
+    non-finite entry = floor unknown) or None (all unknown). ``like`` gives dtype and device."""
+    z = torch.zeros(B, 4, dtype=like.dtype, device=like.device)
+    z[:, 2] = 1.0
+    if floor is None:
+        return FloorParts(z[:, :3], z[:, 3], torch.zeros(B, dtype=torch.bool, device=like.device))
+    if floor.shape != (B, 4):
+        raise ValueError(f"floor must have shape ({B}, 4), got {tuple(floor.shape)}")
+    known = torch.isfinite(floor).all(-1)
+    f = torch.where(known[:, None], floor.to(like.dtype), z)
+    n = f[:, :3] / f[:, :3].norm(dim=-1, keepdim=True).clamp_min(1e-9)
+    return FloorParts(n, f[:, 3], known)
+
+
+def _single_view_anchor(
+    o: torch.Tensor, d: torch.Tensor, w: torch.Tensor, floor: FloorParts | None = None
+) -> torch.Tensor:
     """Anchor from the most confident view alone: on its mean ray, at the depth where the
-    keypoints' angular spread matches a standing adult's. Shapes as in anchors_from_rays."""
+    keypoints' angular spread matches a standing adult's; with a known floor, that depth's
+    log is averaged (inverse variance) with the depth at which the view's lowest ray meets
+    the floor (the person stands on it, within :data:`FLOOR_CONTACT_SD`). Shapes as in
+    :func:`anchors_from_rays`."""
     best = w.sum(-1).argmax(1)  # (B,)
     idx = best[:, None, None, None].expand(-1, 1, *o.shape[2:])
     ob, db = o.gather(1, idx)[:, 0], d.gather(1, idx)[:, 0]  # (B, J, 3)
@@ -315,9 +374,38 @@ def _single_view_anchor(o: torch.Tensor, d: torch.Tensor, w: torch.Tensor) -> to
     depth = (BODY_SPREAD / spread.sqrt().clamp_min(1e-3)).clamp(0.5, 30.0)
     m = m / m.norm(dim=-1, keepdim=True).clamp_min(1e-9)
     origin = (ob * wb[..., None]).sum(1) / tot
+    if floor is not None:
+        depth = _floor_depth(depth, ob, db, wb, m, origin, floor)
     anchor = origin + depth * m
     # No keypoint at all: the world origin.
     return torch.where(wb.sum(-1, keepdim=True) > 0, anchor, torch.zeros_like(anchor))
+
+
+def _floor_depth(depth, ob, db, wb, m, origin, floor: FloorParts) -> torch.Tensor:
+    """The single-view anchor's depth (B, 1) with the floor: see :func:`_single_view_anchor`.
+
+    The view's lowest ray meets the floor at the foot ``F``; the body stands above it, so
+    the floor's depth is that of the point of the mean ray ``m`` above ``F`` (horizontally
+    nearest; along ``m`` to ``F``'s depth when the camera looks nearly straight down)."""
+    n = floor.n
+    height = (origin * n).sum(-1) - floor.h  # (B,) the camera above the floor
+    down = -(db * n[:, None]).sum(-1)  # (B, J) how steeply each ray descends
+    hits = (wb > 0) & (down > 0.05) & floor.known[:, None] & (height[:, None] > 0.2)
+    t = torch.where(hits, height[:, None] / down.clamp_min(0.05), torch.full_like(down, 1e6))
+    t_low, j = t.min(-1)  # the lowest keypoint's ray meets the floor nearest the camera
+    d_low = db.gather(1, j[:, None, None].expand(-1, 1, 3))[:, 0]
+    foot = d_low * t_low[:, None]  # F - origin
+    m_h = m - (m * n).sum(-1, keepdim=True) * n  # the mean ray's horizontal part
+    f_h = foot - (foot * n).sum(-1, keepdim=True) * n
+    flat = (m_h * m_h).sum(-1)
+    above = (f_h * m_h).sum(-1) / flat.clamp_min(1e-6)
+    along = t_low * (d_low * m).sum(-1).clamp_min(0.1)
+    floor_depth = torch.where(flat > 0.1, above, along).clamp(0.5, 30.0)
+    sd = (FLOOR_CONTACT_SD / height.clamp_min(0.2)).clamp_min(0.03)
+    w_floor = torch.where(hits.any(-1), sd**-2, torch.zeros_like(sd))[:, None]
+    w_size = SPREAD_LOG_SD**-2
+    log_depth = (w_size * depth.log() + w_floor * floor_depth.log()[:, None]) / (w_size + w_floor)
+    return log_depth.exp()
 
 
 class RMPL(nn.Module):
@@ -335,12 +423,14 @@ class RMPL(nn.Module):
         self.config = c = config or RMPLConfig()
         half = c.dim // 2
         ray_features = {"rays": 9 if c.geometric else 6, "pixels": 2, "pixels+calib": 18}[c.inputs]
+        ray_features += FLOOR_VIEW_FEATURES if c.floor else 0
         self.ray_embed = nn.Linear(ray_features, half)
         self.conf_embed = nn.Linear(1, c.dim - half)
         self.fusion_token = nn.Parameter(torch.zeros(1, 1, c.dim))
         self.view_encoder = Encoder(c.dim, c.depth_view, c.heads, c.mlp_ratio, c.drop_path)
         self.anatomy = nn.Parameter(torch.zeros(1, c.num_joints, c.dim))
-        self.joint_embed = nn.Linear(6, c.dim) if c.geometric else None
+        joint_features = 6 + (FLOOR_JOINT_FEATURES if c.floor else 0)
+        self.joint_embed = nn.Linear(joint_features, c.dim) if c.geometric else None
         self.pose_encoder = Encoder(c.dim, c.depth_pose, c.heads, c.mlp_ratio, c.drop_path)
         self.head = nn.Linear(c.dim, 3)
         if c.anchor_parents:
@@ -373,6 +463,7 @@ class RMPL(nn.Module):
         scores: torch.Tensor,
         keypoints: torch.Tensor | None = None,
         cameras: torch.Tensor | None = None,
+        floor: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """Lift rays to 3D joints.
 
@@ -381,11 +472,14 @@ class RMPL(nn.Module):
             scores: (B, V, J) confidences in [0, 1]; 0 (or a non-finite ray) = missing.
             keypoints: (B, V, J, 2) pixels; only for ``inputs="pixels"`` / ``"pixels+calib"``.
             cameras: (B, V, 16) from :func:`camera_features`; only for ``"pixels+calib"``.
+            floor: (B, 4) the floor plane ``n . X = h`` as ``[n_x, n_y, n_z, h]``, ``n``
+                pointing up; a row with NaN = unknown; None = unknown for all. Only models
+                with ``config.floor`` read it.
 
         Returns:
             Joints, shape (B, J, 3), world metres.
         """
-        enc = self.encode(rays, scores, keypoints, cameras)
+        enc = self.encode(rays, scores, keypoints, cameras, floor)
         return enc.base + self.head(enc.tokens)
 
     def encode(
@@ -394,6 +488,7 @@ class RMPL(nn.Module):
         scores: torch.Tensor,
         keypoints: torch.Tensor | None = None,
         cameras: torch.Tensor | None = None,
+        floor: torch.Tensor | None = None,
     ) -> Encoding:
         """Everything but the output head: the fused joint tokens and the points the head
         corrects. Arguments as in :meth:`forward`; ``forward = base + head(tokens)``."""
@@ -406,8 +501,9 @@ class RMPL(nn.Module):
         ok = torch.isfinite(rays).all(-1) & torch.isfinite(scores) & (scores > 0)
         rays = torch.where(ok[..., None], rays, torch.zeros_like(rays))
         scores = torch.where(ok, scores, torch.zeros_like(scores))
+        fl = floor_parts(floor, B, rays) if c.floor else None
         if c.recenter or c.geometric:
-            base, valid, P = anchors_from_rays(rays, scores, robust=c.robust_anchor)
+            base, valid, P = anchors_from_rays(rays, scores, robust=c.robust_anchor, floor=fl)
             if c.anchor_parents:
                 base = parent_fallback(base, valid, self.parents)
         else:
@@ -415,17 +511,17 @@ class RMPL(nn.Module):
         if not c.recenter:
             P = torch.zeros(B, 3, dtype=rays.dtype, device=rays.device)
         fused = self._fuse_views(
-            rays, scores, ok, P, base if c.geometric else None, keypoints, cameras
+            rays, scores, ok, P, base if c.geometric else None, keypoints, cameras, fl
         )
         y = fused + self.anatomy  # (B, J, D)
         if c.geometric:
-            y = y + self.joint_embed(_joint_features(base, P, valid, ok))
+            y = y + self.joint_embed(_joint_features(base, P, valid, ok, fl))
         tokens = self.pose_encoder(y)
         return Encoding(
             tokens, base if c.geometric else P[:, None].expand(B, J, 3), valid, ok.sum(1)
         )
 
-    def _fuse_views(self, rays, scores, ok, P, base, keypoints, cameras) -> torch.Tensor:
+    def _fuse_views(self, rays, scores, ok, P, base, keypoints, cameras, fl) -> torch.Tensor:
         """The View Fusion Transformer: one fused token per joint, (B, J, D)."""
         c = self.config
         B, V, J, _ = rays.shape
@@ -436,6 +532,8 @@ class RMPL(nn.Module):
         if base is not None:
             perp = _perpendicular(o - base[:, None], d)  # (B, V, J, 3)
             feats.append((perp / PERP_SCALE).clamp(-8, 8))
+        if fl is not None:
+            feats.append(_floor_view_features(o, d, P, fl))
         x = torch.cat(feats, -1)
         conf = scores[..., None] if c.confidence else torch.zeros_like(scores[..., None])
         tokens = torch.cat([self.ray_embed(x), self.conf_embed(conf)], -1)  # (B, V, J, D)
@@ -468,18 +566,36 @@ class Encoding:
     views: torch.Tensor
 
 
-def _joint_features(base, P, valid, ok) -> torch.Tensor:
-    """Per-joint geometric features (B, J, 6): base - anchor, validity, view counts."""
+def _joint_features(base, P, valid, ok, fl: FloorParts | None = None) -> torch.Tensor:
+    """Per-joint geometric features (B, J, 6): base - anchor, validity, view counts; with
+    the floor (B, J, 8): + the base point's height above the floor, floor known."""
     n = ok.sum(1).to(base.dtype)  # (B, J)
-    return torch.cat(
-        [
-            base - P[:, None],
-            valid[..., None].to(base.dtype),
-            (n[..., None] / 4).clamp(max=2),
-            (n[..., None] > 0).to(base.dtype),
-        ],
-        -1,
-    )
+    feats = [
+        base - P[:, None],
+        valid[..., None].to(base.dtype),
+        (n[..., None] / 4).clamp(max=2),
+        (n[..., None] > 0).to(base.dtype),
+    ]
+    if fl is not None:
+        known = fl.known[:, None, None].to(base.dtype).expand(*base.shape[:2], 1)
+        height = ((base * fl.n[:, None]).sum(-1, keepdim=True) - fl.h[:, None, None]).clamp(-3, 3)
+        feats += [height * known, known]
+    return torch.cat(feats, -1)
+
+
+def _floor_view_features(o, d, P, fl: FloorParts) -> torch.Tensor:
+    """Per view and joint (B, V, J, 3): the camera's height above the floor (/ 4 m), the log
+    of the depth at which the ray meets the floor over the anchor's depth along it, and
+    whether it meets the floor (in front of the camera, descending); zeros when unknown."""
+    n, h = fl.n[:, None, None], fl.h[:, None, None]
+    known = fl.known[:, None, None].to(o.dtype).expand(o.shape[:-1])
+    height = (o * n).sum(-1) - h  # (B, V, J)
+    down = -(d * n).sum(-1)
+    hits = (known > 0) & (down > 0.02) & (height > 0)
+    depth_anchor = ((P[:, None, None] - o) * d).sum(-1).clamp_min(0.1)
+    ratio = (height.clamp_min(1e-3) / down.clamp_min(0.02) / depth_anchor).log().clamp(-2, 2)
+    hit = hits.to(o.dtype)
+    return torch.stack([height / ORIGIN_SCALE * known, ratio * hit, hit], -1)
 
 
 class MLPLifter(nn.Module):

@@ -73,6 +73,10 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 CUES = ("floor", "size", "time")
+#: The one-view log-depth error of a model that reads the floor (``lifter_sd`` of
+#: :meth:`MonocularConfig.for_model`), measured on held-out synthetic scenes
+#: (docs/results.md, "A lifter that reads the floor").
+FLOOR_MODEL_LIFTER_SD = 0.10
 #: (shoulder height - ankle height) / stature for adults: 0.818 - 0.039 (Winter's segment
 #: ratios); shin + thigh + trunk (mid-hip to mid-shoulder) spans it.
 STATURE_RATIO = 0.779
@@ -155,13 +159,28 @@ class MonocularConfig:
             raise ValueError(f"stature_range must bracket stature, got {self.stature_range}")
 
     @classmethod
-    def from_cues(cls, text: str) -> MonocularConfig:
-        """``"floor+size+time"`` (any subset, joined by +) -> a config with those cues."""
+    def from_cues(cls, text: str, **overrides) -> MonocularConfig:
+        """``"floor+size+time"`` (any subset, joined by +; "none": the lifter's own depth)
+        -> a config with those cues."""
         cues = tuple(c.strip() for c in text.split("+") if c.strip())
+        if cues == ("none",):
+            return cls(cues=(), **overrides)
         bad = [c for c in cues if c not in CUES]
         if bad or not cues:
-            raise InputError(None, "cues", f"some of {', '.join(CUES)} joined by +", text)
-        return cls(cues=cues)
+            raise InputError(None, "cues", f"some of {', '.join(CUES)} joined by +, or none", text)
+        return cls(cues=cues, **overrides)
+
+    @classmethod
+    def for_model(cls, model: str) -> MonocularConfig:
+        """The cues ``rmpl run`` uses with a per-frame model: all three, or for a model that
+        reads the floor (:attr:`rmpl.inference.Lifter.reads_floor`; its depth already uses
+        the floor and its learnt body sizes) time alone, with that model's one-view depth
+        error (:data:`FLOOR_MODEL_LIFTER_SD`)."""
+        from rmpl.inference import checkpoint_reads_floor
+
+        if checkpoint_reads_floor(model):
+            return cls(cues=("time",), lifter_sd=FLOOR_MODEL_LIFTER_SD)
+        return cls()
 
 
 # --------------------------------------------------------------------------- per-pose math
@@ -639,7 +658,7 @@ def monocular_people(
     center = rig.centers[0]
     rows = [np.flatnonzero(frame == t) for t in range(num_frames)]
     people = [Association(kp[r], sc[r], np.zeros((len(r), 1), int)) for r in rows]
-    fn = lift or _estimator(cfg, joints=joints)
+    fn = lift or _estimator(cfg, joints=joints, floor=floor)
     per_frame, views = estimate(people, rig, cfg, fn=fn)  # lists of (N, J, 3), (N, J)
     J = per_frame[0].shape[-2] if per_frame else COCO17.num_joints
     skeleton = getattr(fn, "skeleton", None) or BY_COUNT.get(J, "coco17")
@@ -735,7 +754,7 @@ def lift_single_view(
         floor: the floor (:mod:`rmpl.geometry.floor`), or None: the size prior (and time)
             alone.
         config: :class:`rmpl.pipeline.runner.RunConfig` (method "rmpl", a per-frame model).
-        monocular: the cues (default: all three).
+        monocular: the cues (default: :meth:`MonocularConfig.for_model`).
         temporal: apply the runner's filters (:func:`rmpl.pipeline.runner.smooth`).
         joints: the 2D's joint set (None: by its joint count).
 
@@ -746,7 +765,7 @@ def lift_single_view(
     from rmpl.pipeline.runner import RunConfig, drop_far, smooth
 
     cfg = config or RunConfig()
-    mono = monocular or MonocularConfig()
+    mono = monocular or MonocularConfig.for_model(cfg.model)
     if len(rig) != 1:
         raise ValueError(f"lift_single_view takes one camera, got {len(rig)}")
     T = keypoints.shape[0]
@@ -772,7 +791,9 @@ def lift_single_view(
         sigma = filled[..., 0, 0]
     radius = RADIUS_50_1D * sigma[..., None] * np.linalg.norm(tracks - rig.centers[0], axis=-1)
     radius = np.where(ok, radius, np.nan)
-    _log_summary(res, radius, floor, mono)
+    from rmpl.inference import checkpoint_reads_floor
+
+    _log_summary(res, radius, floor, mono, reads_floor=checkpoint_reads_floor(cfg.model))
     return Poses3D(
         points=tracks,
         flags=flags.astype(np.uint8),
@@ -785,10 +806,16 @@ def lift_single_view(
     )
 
 
-def _log_summary(res: MonocularResult, radius: np.ndarray, floor, mono: MonocularConfig) -> None:
+def _log_summary(
+    res: MonocularResult, radius: np.ndarray, floor, mono: MonocularConfig, reads_floor=False
+) -> None:
     """Say plainly where depth came from and how uncertain it is."""
-    cues = ", ".join(mono.cues)
+    cues = ", ".join(mono.cues) or "none"
     where = floor.describe() if floor is not None else "no floor (size prior and time only)"
+    if reads_floor:
+        cues = f"the lifter's own, learnt from the floor and body sizes; then {cues}"
+        if floor is None:
+            where = "no floor (the lifter's learnt body sizes only: expect a coarse depth)"
     log.info(
         "one camera: depth along the rays comes from priors, not from triangulation (cues: "
         "%s); floor: %s", cues, where,

@@ -75,6 +75,9 @@ class RunReport:
         people, cameras, joints: table rows (dicts of plain numbers and text).
         disagreements: rows of (person, camera, frames, ranges, median error).
         notes: sentences for the reader (what could not be measured and why).
+        one_camera: with one camera, where depth came from and how uncertain it is
+            (``statement``, ``uncertainty_50_mm_median``, ``uncertainty_50_mm_p90``); None
+            with more cameras.
     """
 
     poses: Poses3D
@@ -85,6 +88,7 @@ class RunReport:
     joints: list[dict]
     disagreements: list[dict]
     notes: list[str] = field(default_factory=list)
+    one_camera: dict | None = None
 
     @property
     def exit_code(self) -> int:
@@ -124,6 +128,7 @@ class RunReport:
             "joints": self.joints,
             "disagreements": self.disagreements,
             "notes": self.notes,
+            "one_camera": self.one_camera,
         }  # fmt: skip
 
     def to_markdown(self) -> str:
@@ -263,8 +268,30 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
                 }
             )
     return RunReport(
-        poses, consistency, height_notes, people, cameras, joints, disagreements, notes
-    )
+        poses, consistency, height_notes, people, cameras, joints, disagreements, notes,
+        _one_camera(poses) if len(rig) == 1 else None,
+    )  # fmt: skip
+
+
+ONE_CAMERA_STATEMENT = (
+    "One camera: nothing triangulates the depth along each joint's ray. It comes from priors: "
+    "where the floor is, how tall people are, that a person's size is constant and their "
+    "distance changes smoothly (the run's log says which applied). Sideways, seen from the "
+    "camera, the joints are as good as the 2D; their distance from the camera is an estimate"
+)
+
+
+def _one_camera(poses: Poses3D) -> dict:
+    """The one-camera statement and the spread of the per-joint depth-error radius."""
+    r = poses.uncertainty
+    r = r[np.isfinite(r)] * 1000 if r is not None else np.zeros(0)
+    median = round(float(np.median(r)), 1) if r.size else None
+    p90 = round(float(np.percentile(r, 90)), 1) if r.size else None
+    return {
+        "statement": ONE_CAMERA_STATEMENT,
+        "uncertainty_50_mm_median": median,
+        "uncertainty_50_mm_p90": p90,
+    }
 
 
 def _in_joints_of(poses: Poses3D, kp2: np.ndarray, sc2: np.ndarray, inputs):
@@ -478,6 +505,19 @@ def _markdown(r: RunReport) -> str:
             "",
         ]
     md += [f"- {line}" for line in verdict_lines(r)] + [""]
+    if r.one_camera is not None:
+        oc = r.one_camera
+        md += ["## One camera: depth from priors", "", oc["statement"] + "."]
+        if oc["uncertainty_50_mm_median"] is not None:
+            md += [
+                "",
+                f"How uncertain: half of the joints' depth errors are expected within "
+                f"{oc['uncertainty_50_mm_median']:.0f} mm (median over joints and frames; 90th "
+                f"percentile {oc['uncertainty_50_mm_p90']:.0f} mm), per joint in "
+                "poses.json/npz `uncertainty`. It leaves out the lifter's error in the "
+                "body's shape.",
+            ]
+        md += [""]
     md += ["## People", ""]
     md += _table(
         r.people,

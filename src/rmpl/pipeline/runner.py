@@ -185,11 +185,12 @@ def input_skeleton(num_joints: int, joints: str | None = None) -> str:
 _COCO_JOINTS = 17  # COCO-17 is the first 17 joints of both output sets
 
 
-def _estimator(config: RunConfig, used: bool = False, joints: str | None = None):
+def _estimator(config: RunConfig, used: bool = False, joints: str | None = None, floor=None):
     """``fn(kp, sc, rig) -> (points, num_views)``, or with ``used`` ``(points, num_views,
     views used (N, V, J) bool)``, J the output's joints.
 
     ``joints`` names the 2D's joint set (None: by its joint count, :func:`input_skeleton`).
+    ``floor`` (:class:`rmpl.geometry.floor.Floor`) goes to a lifter that reads it.
     The function's attribute ``skeleton`` names the output's joint set when known before
     the first call: the lifter's own (:attr:`rmpl.Lifter.skeleton`); triangulation keeps
     the 2D's (``fn.skeleton`` is then ``joints``, possibly None).
@@ -209,7 +210,7 @@ def _estimator(config: RunConfig, used: bool = False, joints: str | None = None)
 
         def lift(kp, sc, rig):
             name = input_skeleton(kp.shape[-2], joints)
-            r = lifter.lift(kp, sc, rig, up=up, joints=name)
+            r = lifter.lift(kp, sc, rig, up=up, joints=name, floor=floor)
             if name != skeleton.name:  # the views used, in the model's joints
                 kp, sc = to_model_joints(kp, sc, skeleton, name)
             return out(r.points, r.num_views, np.isfinite(kp).all(-1) & (sc > 0))

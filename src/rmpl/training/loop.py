@@ -72,7 +72,8 @@ class TrainConfig:
         init: a checkpoint directory whose weights start the run (a fine-tune). Its joint
             set may be smaller than the model's (COCO-17 into HALPE-26): each new joint's
             identity token starts as that of the joint it hangs from
-            (:data:`INIT_FROM`). "" = random initialisation.
+            (:data:`INIT_FROM`); inputs it lacks (the floor's) start with zero weights.
+            "" = random initialisation.
     """
 
     poses: str = ""
@@ -254,8 +255,10 @@ def _checkpoint_tensors(weights: Path, model: RMPL) -> dict:
 def validation_sets(
     poses: np.ndarray, cfg: TrainConfig, views=(1, 2, 3, 4, 5)
 ) -> dict[int, object]:
-    """Fixed validation batches per number of views (seeded, no keypoint removal)."""
-    sampler = replace(SamplerConfig(**cfg.sampler), drop_rate=0.0)
+    """Fixed validation batches per number of views (seeded, no keypoint removal; a floor
+    the model may read is given for every sample)."""
+    sampler = SamplerConfig(**cfg.sampler)
+    sampler = replace(sampler, drop_rate=0.0, floor_rate=float(sampler.floor_rate > 0))
     src = PairSource(poses, sampler, cfg.noise_config(), seed=12345)
     return {v: src.batch(cfg.val_size, v, train=False) for v in views}
 
@@ -274,6 +277,7 @@ def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
         drop_rate=sampler.drop_rate,
         seed=cfg.seed,
         joints=cfg.model_config().skeleton,
+        floor=_shard_floor(sampler),
     )
     log.info("MHP: %d meshes x up to %d views", shards.num_meshes, shards.num_views)
     if shards.num_views < cfg.max_views:
@@ -288,15 +292,25 @@ def _training_source(cfg: TrainConfig, poses_train: np.ndarray):
     return MixSource([shards, pairs], [cfg.mhp_weight, 1 - cfg.mhp_weight], seed=cfg.seed)
 
 
+def _shard_floor(sampler: SamplerConfig) -> tuple[float, float, float] | None:
+    """MHP renders stand on z = 0: their floor as the sampler gives it (``ShardSource``)."""
+    if sampler.floor_rate <= 0:
+        return None
+    return (sampler.floor_rate, sampler.floor_noise_m, sampler.floor_tilt_deg)
+
+
 def _mhp_validation_sets(cfg: TrainConfig, views=(1, 2, 3, 4, 5)) -> dict[int, object]:
-    """Fixed batches of held-out MHP renders (no augmentation, no keypoint removal)."""
+    """Fixed batches of held-out MHP renders (no augmentation, no keypoint removal; a floor
+    the model may read is given for every sample)."""
     if not cfg.mhp_val:
         return {}
     from rmpl.data.mhp import ShardSource
 
+    floor = (1.0, 0.0, 0.0) if SamplerConfig(**cfg.sampler).floor_rate > 0 else None
     src = ShardSource(
-        cfg.mhp_val, drop_rate=0.0, augment=False, seed=54321, joints=cfg.model_config().skeleton
-    )
+        cfg.mhp_val, drop_rate=0.0, augment=False, seed=54321,
+        joints=cfg.model_config().skeleton, floor=floor,
+    )  # fmt: skip
     return {v: src.batch(cfg.val_size, v, train=False) for v in views if v <= src.num_views}
 
 
@@ -318,6 +332,9 @@ def forward_batch(model: torch.nn.Module, b) -> torch.Tensor:
     """Run a model on a :class:`~rmpl.data.synthetic.Batch`, with the inputs its config asks
     for (rays, or pixels [+ calibration] for the modality ablation): (B, J, 3)."""
     rays, scores = torch.from_numpy(b.rays), torch.from_numpy(b.scores)
+    if getattr(model.config, "floor", False):
+        floor = getattr(b, "floor", None)
+        return model(rays, scores, floor=None if floor is None else torch.from_numpy(floor))
     if model.config.inputs == "rays":
         return model(rays, scores)
     kp = torch.from_numpy(np.nan_to_num(b.keypoints).astype(np.float32))
@@ -477,6 +494,15 @@ def init_from_checkpoint(model: RMPL, path: str | Path) -> None:
             raise InputError(path, "joints", f"the joints of {want.name}", have.name)
         anatomy[0, j] = state["anatomy"][0, have.index(source)]
     state["anatomy"] = anatomy
+    for key, want_t in model.state_dict().items():  # inputs the source lacks (the floor)
+        have_t = state.get(key)
+        if (
+            have_t is not None and have_t.ndim == 2 and want_t.ndim == 2
+            and have_t.shape[0] == want_t.shape[0] and have_t.shape[1] < want_t.shape[1]
+        ):  # fmt: skip
+            wider = torch.zeros_like(want_t)
+            wider[:, : have_t.shape[1]] = have_t
+            state[key] = wider  # new input columns start at zero: the same answers at first
     try:
         model.load_state_dict(state)
     except RuntimeError as e:

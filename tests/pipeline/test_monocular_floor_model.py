@@ -1,0 +1,90 @@
+"""One camera with a lifter that reads the floor: the cues ``rmpl run`` then uses, the
+floor reaching the network, and what the log says (issue 16)."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import rmpl
+from rmpl.cli import main
+from rmpl.errors import InputError
+from rmpl.geometry.camera import Camera, Rig, look_at
+from rmpl.io.calibration import save_rig
+from rmpl.io.keypoints import Keypoints2D, save_keypoints
+from rmpl.io.poses import load_poses
+from rmpl.model.lifter import RMPL, RMPLConfig
+from rmpl.pipeline.monocular import FLOOR_MODEL_LIFTER_SD, MonocularConfig
+from rmpl.training.loop import save_checkpoint
+
+WALK = Path(rmpl.__file__).parent / "examples" / "walk" / "ground_truth.npz"
+
+
+@pytest.fixture(scope="module")
+def floor_model(tmp_path_factory) -> Path:
+    model = RMPL(RMPLConfig(dim=32, depth_view=1, depth_pose=1, heads=2, floor=True))
+    g = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        for p in model.parameters():
+            p.copy_(torch.randn(p.shape, generator=g) * 0.05)
+    path = tmp_path_factory.mktemp("floor_model")
+    save_checkpoint(model, path, {"model": model.config.to_dict()})
+    return path
+
+
+def test_cues_for_a_model_that_reads_the_floor(floor_model):
+    cfg = MonocularConfig.for_model(str(floor_model))
+    assert cfg.cues == ("time",) and cfg.lifter_sd == FLOOR_MODEL_LIFTER_SD
+    assert MonocularConfig.for_model("default") == MonocularConfig()
+    assert MonocularConfig.from_cues("none").cues == ()
+    with pytest.raises(InputError, match="none"):
+        MonocularConfig.from_cues("floor+depth")
+
+
+def _io(tmp_path: Path) -> list[str]:
+    X = np.load(WALK)["points"][:, 0].astype(float)
+    K = np.array([[1000.0, 0, 640], [0, 1000, 360], [0, 0, 1]])
+    C = np.array([5.0, 0.5, 2.5])
+    R, _ = look_at(C, np.array([0.0, 0, 1]))
+    rig = Rig((Camera(K, R, -R @ C, size=(1280, 720), name="cam"),))
+    kp = rig.project(X)
+    doc = Keypoints2D(kp[:, :, None], np.full(kp[:, :, None].shape[:-1], 0.9), "coco17", rig.names,
+                      np.arange(len(X)), 30.0)  # fmt: skip
+    save_rig(rig, tmp_path / "calib.toml")
+    save_keypoints(doc, tmp_path / "kp.json")
+    return ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+
+
+def test_one_camera_run_gives_the_floor_to_the_model(tmp_path, floor_model, caplog):
+    io = _io(tmp_path)
+    outs = {}
+    for floor in ("z=0", "z=0.2", "none"):
+        out = tmp_path / f"{floor}.npz"
+        with caplog.at_level(logging.INFO):
+            args = ["lift", *io, "--model", str(floor_model), "--floor", floor, "--out", str(out)]
+            assert main(args) == 0
+        outs[floor] = load_poses(out)
+    assert "learnt from the floor" in caplog.text
+    assert "expect a coarse depth" in caplog.text  # said for --floor none
+    for poses in outs.values():
+        assert np.isfinite(poses.points).all() and np.isfinite(poses.uncertainty).all()
+    assert not np.allclose(outs["z=0"].points, outs["z=0.2"].points)
+    assert not np.allclose(outs["z=0"].points, outs["none"].points)
+
+
+def test_one_camera_report_says_where_depth_came_from(tmp_path, floor_model):
+    import json
+
+    io = _io(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", *io, "--model", str(floor_model), "--floor", "z=0", "--out", str(out)]) == 0
+    md = (out / "report.md").read_text()
+    assert "## One camera: depth from priors" in md
+    assert "nothing triangulates the depth" in md
+    block = json.loads((out / "report.json").read_text())["one_camera"]
+    assert block["uncertainty_50_mm_median"] > 0
+    assert block["uncertainty_50_mm_p90"] >= block["uncertainty_50_mm_median"]
