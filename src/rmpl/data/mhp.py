@@ -59,9 +59,15 @@ def load_mhp(
 
     Raises:
         InputError: not an MHP directory, another joint set, or nothing selected.
+
+    A multi-person scene set (``rmpl.mhp.scenes.v1``) is read as one pair per body
+    (:func:`rmpl.data.scenes.load_scene_pairs`).
     """
+    from rmpl.data.scenes import is_scene_set, load_scene_pairs
     from rmpl.synth.generate import FORMAT
 
+    if is_scene_set(root):
+        return load_scene_pairs(root, subjects, exclude_subjects, joints)
     return _load(root, FORMAT, (*_ARRAYS, "projected"), ("projected",), subjects,
                  exclude_subjects, "meshes", joints)  # fmt: skip
 
