@@ -275,3 +275,15 @@ def test_pairs_of_the_heldout_scenes(scenes_heldout, tmp_path):
     _check_like_load_mhp(d, load_mhp(_fake_mhp(tmp_path, views=V)))
     b = ShardSource(scenes_heldout, seed=0, joints="halpe26").batch(16, min(V, 5))
     assert b.rays.shape == (16, min(V, 5), 26, 6) and np.isfinite(b.rays).all()
+
+
+def test_bodies_no_drawn_view_detects_are_left_out_of_the_loss(tmp_path):
+    """A training batch's body with no keypoint in its drawn views gets a NaN target (the
+    NaN-aware loss skips it); validation batches keep every target."""
+    src = ShardSource(_fake_scenes(tmp_path / "scenes", views=5), drop_rate=0.0, seed=0)
+    b = src.batch(64, 1)
+    empty = ~(b.scores > 0).any((1, 2))
+    assert empty.any() and (~empty).any()
+    assert np.isnan(b.target[empty]).all() and np.isfinite(b.target[~empty]).all()
+    v = src.batch(64, 1, train=False)
+    assert np.isfinite(v.target).all()

@@ -234,6 +234,9 @@ def turn_and_shift(target, R, t, shift: float, rng: np.random.Generator):
 class ShardSource:
     """Training batches from MHP shards: each sample is one mesh seen by ``V`` of its views.
 
+    A training batch's sample with no keypoint in its drawn views (a scene's body that none
+    of them detected) gets a NaN target, which the loss leaves out.
+
     Args:
         root: MHP directory (or several, concatenated; they may differ in views per mesh:
             a batch of V views draws from the meshes that have at least V).
@@ -315,6 +318,8 @@ class ShardSource:
         if train and self.drop_rate > 0:
             drop = rng.random(scores.shape) < self.drop_rate
             scores = np.where(drop, 0.0, scores)
+        if train:  # nothing seen (a scene's body no drawn view detected): nothing to learn
+            target = np.where((scores > 0).any((1, 2))[:, None, None], target, np.nan)
         kp = np.where(scores[..., None] > 0, kp, np.nan)
         rays = rays_from_keypoints(kp, K=K, R=R, t=t)
         rays = np.where(scores[..., None] > 0, rays, 0.0)
