@@ -17,7 +17,8 @@ Like BlazePose's own tracking mode, a person found in one frame is followed into
 through the crop its auxiliary landmarks give, so the detector is only needed to find new
 people. The detector's input is square, so in a long image (a portrait 1080 x 1920 video)
 people are small in a whole-image view and it misses some: it also looks at square
-windows of the image (:func:`detector_windows`). On a frame where nobody is followed it
+windows of the image (:func:`detector_windows`; ``window_scales`` adds smaller ones, for
+people far from the camera). On a frame where nobody is followed it
 looks at the whole image and every window; where someone was lost, at the whole image;
 otherwise at one of them every ``detect_every`` frames, in turn. A followed person keeps its
 slot in the people axis while the landmark network says it is present. Two crops that
@@ -220,10 +221,19 @@ def crop_affine(centre: np.ndarray, side: float, angle: float, size: int) -> np.
     return np.concatenate([A, (np.asarray(centre) - A @ [size / 2, size / 2])[:, None]], axis=1)
 
 
-def detector_windows(height: int, width: int) -> list[tuple[int, int, int, int]]:
-    """Where the person detector looks: the whole image, then squares of the short side
-    overlapping by half along the long side (the detector's input is square, so a person in a
-    long image is small in the whole-image view).
+def detector_windows(
+    height: int, width: int, scales: tuple[float, ...] = (1.0,)
+) -> list[tuple[int, int, int, int]]:
+    """Where the person detector looks: the whole image, then, for each scale, squares of
+    that fraction of the short side tiling the image and overlapping their neighbours by
+    about half (the detector's input is square and 224 pixels, so a person in a long image,
+    or far from the camera, is small in the whole-image view). A scale whose squares would
+    only repeat the whole image (within 10% on both sides) adds none.
+
+    Args:
+        height, width: the image, pixels.
+        scales: window sides as fractions of the short side, each in (0, 1]; 1 gives
+            squares of the short side along the long side.
 
     Returns:
         windows (x0, y0, x1, y1), pixels; the first is the whole image.
@@ -232,21 +242,37 @@ def detector_windows(height: int, width: int) -> list[tuple[int, int, int, int]]
     [(0, 0, 1080, 1920), (0, 0, 1080, 1080), (0, 420, 1080, 1500), (0, 840, 1080, 1920)]
     >>> detector_windows(100, 100)
     [(0, 0, 100, 100)]
+    >>> w = detector_windows(100, 100, (1.0, 0.5))  # a 3 x 3 grid of half-side squares
+    >>> len(w), w[1:4], w[-1]
+    (10, [(0, 0, 50, 50), (25, 0, 75, 50), (50, 0, 100, 50)], (50, 50, 100, 100))
     """
-    short, long = min(height, width), max(height, width)
     out = [(0, 0, width, height)]
-    if long - short < 0.1 * short:
-        return out
-    count = int(np.ceil(2 * long / short - 1))
-    for start in np.linspace(0, long - short, count).round().astype(int):
-        s = int(start)
-        out.append((0, s, width, s + short) if height > width else (s, 0, s + short, height))
+    for scale in scales:
+        side = max(1, round(scale * min(height, width)))
+        xs, ys = _window_starts(width, side), _window_starts(height, side)
+        if len(xs) == len(ys) == 1:
+            continue  # the whole image again
+        out += [(x, y, x + side, y + side) for y in ys for x in xs]
     return out
+
+
+def _window_starts(length: int, side: int) -> list[int]:
+    """Starts of windows of ``side`` pixels covering ``length``, overlapping by about half;
+    one, centred, when ``length`` exceeds ``side`` by less than 10%."""
+    if length - side < 0.1 * side:
+        return [(length - side) // 2]
+    count = int(np.ceil(2 * length / side - 1))
+    return [int(s) for s in np.linspace(0, length - side, count).round().astype(int)]
 
 
 def _apply(M: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Points (*, 2) through an affine map (2, 3)."""
     return points @ M[:, :2].T + M[:, 2]
+
+
+def _is_fraction(value) -> bool:
+    """Whether ``value`` is a number (not a bool) in (0, 1]."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and 0 < value <= 1
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -390,6 +416,15 @@ class BlazePoseMulti:
             of the body size, in median, are one person, and so is a result most of whose
             landmarks lie this close to another's bones (a phantom); the earlier slot
             keeps it.
+        nms_iou: the person detector's boxes overlapping the best one by more than this
+            intersection over union are merged into it (:func:`weighted_nms`), in (0, 1];
+            0.3 is MediaPipe's single-person setting.
+        window_scales: the detector's square windows beyond the whole image, as fractions
+            of the image's short side, each in (0, 1] (:func:`detector_windows`); smaller
+            windows find people far from the camera but cost a detector run each (a 0.5
+            scale adds 21 windows to a 1920 x 1080 image, 9 to a square one). With
+            ``track``, the windows beyond the whole image are scanned all at once only
+            where nobody is followed, otherwise one per ``detect_every`` frames in turn.
         joints: ``"halpe26"`` (COCO-17 + heels + foot index as the big toe; the head top,
             neck, mid-hip and small toes missing) or ``"coco17"``.
 
@@ -407,6 +442,8 @@ class BlazePoseMulti:
         detect_every: int = 1,
         same_person: float = 0.1,
         joints: str = "halpe26",
+        nms_iou: float = 0.3,
+        window_scales: tuple[float, ...] = (1.0,),
     ) -> None:
         if max_people < 1 or detect_every < 1:
             raise ValueError(f"max_people and detect_every must be >= 1, got {max_people}, "
@@ -414,8 +451,17 @@ class BlazePoseMulti:
         for label, value in (("min_detection", min_detection), ("min_presence", min_presence)):
             if not 0 < value < 1:
                 raise ValueError(f"{label} must be in (0, 1), got {value}")
+        if not _is_fraction(nms_iou):
+            raise ValueError(f"nms_iou must be a number in (0, 1], got {nms_iou!r}")
+        scales = window_scales if isinstance(window_scales, list | tuple) else [window_scales]
+        if not all(_is_fraction(v) for v in scales):
+            raise ValueError(
+                "window_scales must be a list of fractions of the image's short side, each "
+                f"in (0, 1], got {window_scales!r}"
+            )
         self.max_people = int(max_people)
         self.min_detection, self.min_presence = min_detection, min_presence
+        self.nms_iou, self.window_scales = float(nms_iou), tuple(float(v) for v in scales)
         self.track, self.detect_every, self.same_person = track, int(detect_every), same_person
         if not track:
             self.name = "blazepose-multi-static"
@@ -481,7 +527,7 @@ class BlazePoseMulti:
         followed = [(n, p) for n, p in enumerate(self._slots) if p is not None]
         for n, p in followed:
             add(n, self._landmark(image, p.centre, p.side, p.angle))
-        windows = detector_windows(*image.shape[:2])
+        windows = detector_windows(*image.shape[:2], self.window_scales)
         if not self.track or not found:
             scan = windows  # every image afresh, or nobody followed: look everywhere now
         elif len(found) < len(followed):
@@ -530,7 +576,7 @@ class BlazePoseMulti:
         boxes, kps, scores = decode_detections(
             raw.reshape(-1, 12), logits, self._anchors, self.min_detection
         )
-        boxes, kps, scores = weighted_nms(boxes, kps, scores)
+        boxes, kps, scores = weighted_nms(boxes, kps, scores, self.nms_iou)
         kps = (kps * DETECTOR_SIZE - [px, py]) * [w / nw, h / nh] + [x0, y0]  # (n, 4, 2)
         out = []
         for k in kps:

@@ -43,7 +43,7 @@ import logging
 import os
 import time
 import tomllib
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -159,6 +159,10 @@ class GenerateConfig:
             fit, centred), or empty for the preset's own sizes.
         detector: a key of :data:`rmpl.synth.detect.DETECTORS`, or ``"module:factory"``
             naming a callable that returns a :class:`rmpl.synth.detect.Detector`.
+        detector_options: keyword arguments given to the detector's constructor (a TOML
+            table, e.g. ``{ window_scales = [1.0, 0.5] }`` for ``blazepose-multi``),
+            checked against its signature (:func:`check_detector_options`); empty = its
+            defaults.
         seed: random seed; shard ``s`` uses ``(seed, s)``.
         shard_size: meshes per shard file.
         batch_size: meshes posed, rendered and detected together.
@@ -212,6 +216,7 @@ class GenerateConfig:
     sequence_speed: tuple[float, ...] = (1.0, 1.0)
     people: tuple[int, ...] = (1, 1)
     joints: str = "coco17"
+    detector_options: dict = field(default_factory=dict)
 
     @classmethod
     def from_dict(cls, d: dict, path: str | Path | None = None) -> GenerateConfig:
@@ -269,6 +274,7 @@ class GenerateConfig:
         for name, ok, expected in checks:
             if not ok:
                 raise InputError(path, name, expected, repr(getattr(cfg, name)))
+        check_detector_options(cfg.detector, cfg.detector_options, path)
         return cfg
 
     @property
@@ -359,6 +365,8 @@ def _config_dict(cfg: GenerateConfig) -> dict:
             d.pop(key)
     if not cfg.scenes:
         d.pop("people")
+    if not cfg.detector_options:
+        d.pop("detector_options")  # as manifests written before the option existed
     return d
 
 
@@ -396,24 +404,73 @@ def _shard_meshes(cfg: GenerateConfig, index: int) -> int:
 # ------------------------------------------------------------------------ per-process work
 
 
-def make_detector(name: str):
+def make_detector(name: str, options: dict | None = None):
     """A detector from :data:`~rmpl.synth.detect.DETECTORS`, from ``rmpl run``'s
     :data:`~rmpl.pipeline.detect2d.DETECTORS` (e.g. ``blazepose-multi``), or a
-    ``module:factory`` spec."""
+    ``module:factory`` spec, built with the keyword arguments ``options``."""
+    check_detector_options(name, options)
+    return _detector_factory(name)(**(options or {}))
+
+
+def _detector_factory(name: str):
+    """The callable :func:`make_detector` calls for detector ``name``."""
     from rmpl.pipeline.detect2d import DETECTORS as RUN_DETECTORS
     from rmpl.synth.detect import DETECTORS
 
     if name in DETECTORS:
-        return DETECTORS[name]()
+        return DETECTORS[name]
     if name in RUN_DETECTORS:
-        return RUN_DETECTORS[name]()
+        return RUN_DETECTORS[name]
     if ":" in name:
         import importlib
 
         module, attr = name.split(":", 1)
-        return getattr(importlib.import_module(module), attr)()
+        return getattr(importlib.import_module(module), attr)
     known = sorted(set(DETECTORS) | set(RUN_DETECTORS))
     raise ValueError(f"unknown detector {name!r}; known: {known} or 'module:factory'")
+
+
+#: ``rmpl run``'s detectors whose factories only pass keyword arguments on: the class
+#: whose constructor ``detector_options`` are checked against.
+_OPTION_CLASSES = {
+    "blazepose-multi": ("rmpl.synth.detect_multi", "BlazePoseMulti"),
+    "blazepose-multi-static": ("rmpl.synth.detect_multi", "BlazePoseMulti"),
+}
+
+
+def check_detector_options(name: str, options: dict | None, path=None) -> None:
+    """Check ``detector_options`` against detector ``name``'s constructor (by name only,
+    nothing is built; its values are checked when it is built).
+
+    Raises:
+        InputError: an option the constructor does not take (field ``detector_options``);
+            a constructor that takes any ``**kwargs`` accepts every name.
+    """
+    if not options:
+        return
+    import functools
+    import importlib
+    import inspect
+
+    if name in _OPTION_CLASSES:
+        module, attr = _OPTION_CLASSES[name]
+        target = getattr(importlib.import_module(module), attr)
+    else:
+        target = _detector_factory(name)
+        if isinstance(target, functools.partial):
+            target = target.func
+    params = inspect.signature(target).parameters.values()
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return
+    takes = [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    unknown = sorted(set(options) - set(takes))
+    if unknown:
+        raise InputError(
+            path,
+            "detector_options",
+            f"keyword arguments of detector {name!r}: some of {takes}",
+            f"{unknown} (not taken)",
+        )
 
 
 def follows(detector) -> bool:
@@ -472,7 +529,7 @@ class Worker:
             cache_dir=cache_dir or os.environ.get("ANNY_CACHE_DIR"), joints=cfg.joints
         )
         self.renderer = Renderer(self.body.faces, self.body.num_vertices)
-        self.detector = make_detector(cfg.detector)
+        self.detector = make_detector(cfg.detector, cfg.detector_options)
         # Single meshes read a PoseBank (poses.npz); sequences a MotionBank (motion.npz).
         self.bank = None
         self.motion: MotionBank | None = None
