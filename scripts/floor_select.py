@@ -17,6 +17,10 @@ floor and size cues, the candidate with its own depth); (b) held-out MHP sequenc
 (2) Two or more views (floor not given: the multi-view path does not pass one): the tables
 of ``scripts/halpe26_select.py`` (parametric pairs from the mocap bank BANK, and the renders)
 against ``halpe26``. It passes when its mean over 2-5 views is at most 1 mm above on both.
+
+It also prints the candidate's one-view log-depth error on the renders (the mid-hip's distance
+from the camera, estimated over true): its robust standard deviation is the one-view depth
+error :data:`rmpl.pipeline.monocular.FLOOR_MODEL_LIFTER_SD` that ``rmpl run`` assumes.
 """
 
 from __future__ import annotations
@@ -46,8 +50,12 @@ FLOOR = Floor((0.0, 0.0, 1.0), 0.0, source="z=0 (where the renders stand)")
 MARGIN_MM = 1.0
 
 
-def one_view_renders(root: Path, methods: dict[str, MonocularMethod]) -> dict[str, float]:
-    """KP* MPJPE (mm) of each method on every (render, view), one view at a time."""
+def one_view_renders(
+    root: Path, methods: dict[str, MonocularMethod], log_depth: dict | None = None
+) -> dict[str, float]:
+    """KP* MPJPE (mm) of each method on every (render, view), one view at a time; with
+    ``log_depth`` (a dict), each method's log(estimated / true distance of the mid-hip from
+    the camera) per (render, view) is appended to ``log_depth[name]``."""
     d = load_mhp(root, joints="halpe26")
     M, V = d["scores"].shape[:2]
     errors: dict[str, list[float]] = {name: [] for name in methods}
@@ -64,6 +72,10 @@ def one_view_renders(root: Path, methods: dict[str, MonocularMethod]) -> dict[st
                 x = method(kp, sc, rig)[0, :17]
                 e = np.linalg.norm(x - target, axis=-1)[list(KP_STAR)]
                 errors[name].append(float(e.mean() * 1000))
+                if log_depth is not None:
+                    C = rig.centers[0]
+                    r = [np.linalg.norm(p[11:13].mean(0) - C) for p in (x, target)]
+                    log_depth.setdefault(name, []).append(float(np.log(r[0] / r[1])))
     return {name: float(np.nanmean(e)) for name, e in errors.items()}
 
 
@@ -96,8 +108,10 @@ def main() -> int:
     cand = MonocularMethod(f"none@{a.candidate}")
     for method in (base, cand):
         method.floor = FLOOR
+    log_depth: dict[str, list[float]] = {}
+    renders = one_view_renders(a.renders, {"base": base, "cand": cand}, log_depth)
     one = {
-        "renders, one view, per frame": one_view_renders(a.renders, {"base": base, "cand": cand}),
+        "renders, one view, per frame": renders,
         "sequences, one view, rmpl run": one_view_sequences(
             a.sequences, {"base": a.base, "cand": a.candidate}
         ),
@@ -111,6 +125,12 @@ def main() -> int:
         ok_one &= ok
         print(f"| {label} | {r['base']:.1f} | {r['cand']:.1f} | {'pass' if ok else 'fail'} |")
     print("\n(1) " + ("passes: the candidate lifts one camera" if ok_one else "fails") + "\n")
+    ld = np.asarray(log_depth["cand"])
+    ld = ld[np.isfinite(ld)]
+    mad = 1.4826 * np.median(np.abs(ld - np.median(ld)))
+    print(f"the candidate's one-view log-depth error on the renders: median {np.median(ld):+.3f}, "
+          f"robust sd (1.4826 MAD) {mad:.3f}, sd {ld.std():.3f} (n = {ld.size}): "
+          "FLOOR_MODEL_LIFTER_SD\n")  # fmt: skip
 
     print("(2) two to five views, no floor (KP* MPJPE, mm; before / candidate)\n")
     models = {"base": a.multi_base, "candidate": a.candidate}
