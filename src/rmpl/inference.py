@@ -42,12 +42,15 @@ _WEIGHTS = Path(__file__).parent / "weights"
 #: Models shipped inside the package, by name. ``default``: COCO-17, the best on the joints
 #: the detector sees; ``occlusion``: the same recipe with more keypoint removal in training
 #: (p=0.4), better when many keypoints are missing; ``halpe26``: HALPE-26 (COCO-17 + head
-#: top, neck, mid-hip and feet), ``default`` fine-tuned on anny bodies, what ``rmpl run`` and
-#: ``rmpl lift`` use unless told otherwise (docs/results.md).
+#: top, neck, mid-hip and feet), ``default`` fine-tuned on anny bodies; ``floor26``:
+#: ``halpe26`` fine-tuned with the floor plane as an input (``Lifter.lift(floor=)``) and many
+#: one-view batches, what ``rmpl run`` and ``rmpl lift`` use per frame unless told otherwise
+#: (docs/results.md says how each was chosen).
 PRETRAINED: dict[str, Path] = {
     "default": _WEIGHTS / "default",
     "occlusion": _WEIGHTS / "occlusion",
     "halpe26": _WEIGHTS / "halpe26",
+    "floor26": _WEIGHTS / "floor26",
 }
 
 

@@ -14,9 +14,10 @@ from rmpl.geometry.camera import Rig
 #: ``--model`` help of the commands that lift (the names of rmpl.inference.PRETRAINED, kept
 #: here so that building the parser does not import torch).
 MODEL_HELP = (
-    "shipped model (halpe26: per frame, COCO-17 + head top, neck, mid-hip and feet; default: "
-    "per frame, COCO-17; occlusion: COCO-17, for many missing keypoints; temporal26 / "
-    "temporal: whole tracks, HALPE-26 / COCO-17, need a frame rate) or checkpoint folder"
+    "shipped model (floor26: per frame, COCO-17 + head top, neck, mid-hip and feet, reads the "
+    "floor with one camera; halpe26: the same without the floor; default: per frame, COCO-17; "
+    "occlusion: COCO-17, for many missing keypoints; temporal26 / temporal: whole tracks, "
+    "HALPE-26 / COCO-17, need a frame rate) or checkpoint folder"
 )
 
 #: ``--floor`` help of ``rmpl run`` and ``rmpl lift``.

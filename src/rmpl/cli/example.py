@@ -27,7 +27,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/example", help="output folder")
     parser.add_argument(
         "--model",
-        default="halpe26",
+        default="floor26",
         help=MODEL_HELP,
     )
     parser.set_defaults(run=run)

@@ -24,7 +24,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default=None,
-        help=MODEL_HELP + ". Default: halpe26, or with one camera default",
+        help=MODEL_HELP + ". Default: floor26",
     )
     parser.add_argument(
         "--up",

@@ -151,9 +151,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 def default_model(num_cameras: int, fps: float | None, method: str) -> str:
     """``rmpl run``'s model when ``--model`` is not given: the temporal model (whole tracks,
     chosen by the rule in docs/results.md) with two or more cameras and a known frame rate;
-    otherwise the per-frame model ``halpe26``, saying why. With one camera the COCO-17 model
-    ``default``: the one-camera path was measured with it, and the HALPE-26 model was chosen
-    on 2-5 views (docs/results.md)."""
+    otherwise the per-frame model ``floor26``, saying why; with one camera ``floor26`` too,
+    given the floor (docs/results.md: both chosen by rules set before the runs)."""
     if method != "rmpl" or num_cameras < 2:
         return per_frame_model(num_cameras)
     if fps is None:
@@ -172,7 +171,7 @@ def per_frame_model(num_cameras: int) -> str:
 
 #: ``rmpl run``'s shipped models when ``--model`` is not given (docs/results.md says how each
 #: was chosen): per frame, and over whole tracks.
-PER_FRAME, TEMPORAL, ONE_CAMERA = "halpe26", "temporal26", "default"
+PER_FRAME, TEMPORAL, ONE_CAMERA = "floor26", "temporal26", "floor26"
 
 
 def _warn_unused_filter(args: argparse.Namespace) -> None:
@@ -230,7 +229,7 @@ def run(args: argparse.Namespace) -> int:
     if len(inputs.rig) == 1 and args.method == "rmpl" and not single:
         log.warning(
             "ONE CAMERA with the temporal model: nothing fixes the depth along the rays "
-            "(expect errors of 0.3 m or more); --model default takes depth from the floor, "
+            "(expect errors of 0.3 m or more); --model floor26 takes depth from the floor, "
             "body size and time"
         )
     if single:  # depth from the floor, body size and time (it says so in the log)

@@ -30,7 +30,7 @@ def export_onnx(
     scores = torch.rand(2, 3, J)
     args, names, axes = (rays, scores), ["rays", "scores"], {"rays": {0: "B", 1: "V"}}
     axes |= {"scores": {0: "B", 1: "V"}}
-    if getattr(model.config, "floor", False):
+    if getattr(getattr(model, "config", None), "floor", False):
         model = _WithFloor(model)
         args, names = (*args, torch.tensor([[0.0, 0, 1, 0], [np.nan] * 4])), [*names, "floor"]
         axes |= {"floor": {0: "B"}}
