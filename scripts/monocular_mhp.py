@@ -84,7 +84,7 @@ def main() -> None:
     d = load_mhp_sequences(a.root)
     floor = None if a.floor == "none" else parse_floor(a.floor)
     cfg = RunConfig(method="rmpl", model=a.model)
-    mono = MonocularConfig.for_model(a.model)
+    mono = MonocularConfig.for_model(a.model, floor_known=floor is not None)
     if a.cues is not None:
         mono = MonocularConfig.from_cues(a.cues.replace(",", "+"), lifter_sd=mono.lifter_sd)
     a.cues = ",".join(mono.cues) or "none"

@@ -39,6 +39,8 @@ def floor_model(tmp_path_factory) -> Path:
 def test_cues_for_a_model_that_reads_the_floor(floor_model):
     cfg = MonocularConfig.for_model(str(floor_model))
     assert cfg.cues == ("time",) and cfg.lifter_sd == FLOOR_MODEL_LIFTER_SD
+    no_floor = MonocularConfig.for_model(str(floor_model), floor_known=False)
+    assert no_floor.cues == ("size", "time") and no_floor.lifter_sd == MonocularConfig().lifter_sd
     assert MonocularConfig.for_model("default") == MonocularConfig()
     assert MonocularConfig.from_cues("none").cues == ()
     with pytest.raises(InputError, match="none"):
@@ -88,3 +90,21 @@ def test_one_camera_report_says_where_depth_came_from(tmp_path, floor_model):
     block = json.loads((out / "report.json").read_text())["one_camera"]
     assert block["uncertainty_50_mm_median"] > 0
     assert block["uncertainty_50_mm_p90"] >= block["uncertainty_50_mm_median"]
+
+
+def test_one_camera_without_a_floor_and_without_model_lifts_with_the_no_floor_model(
+    tmp_path, caplog
+):
+    """The floor model was chosen with the floor given: with none known, rmpl lift's own
+    choice is the previous one-camera path (and says so); --model keeps the user's."""
+    from rmpl.cli.run import ONE_CAMERA, ONE_CAMERA_NO_FLOOR
+
+    assert ONE_CAMERA != ONE_CAMERA_NO_FLOOR
+    io = _io(tmp_path)
+    auto, given = tmp_path / "auto.npz", tmp_path / "given.npz"
+    with caplog.at_level(logging.INFO):
+        assert main(["lift", *io, "--floor", "none", "--out", str(auto)]) == 0
+    assert f"no floor: lifting with --model {ONE_CAMERA_NO_FLOOR}" in caplog.text
+    args = ["lift", *io, "--floor", "none", "--model", ONE_CAMERA_NO_FLOOR, "--out", str(given)]
+    assert main(args) == 0
+    assert np.array_equal(load_poses(auto).points, load_poses(given).points)

@@ -186,13 +186,22 @@ def one_camera(rig: Rig, method: str, model: str) -> bool:
     return not is_temporal_checkpoint(model)
 
 
-def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool):
+def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_model: bool = False):
     """``rmpl run`` / ``rmpl lift`` with one camera: the lifter, depth from the floor, body
-    size and time (:func:`rmpl.pipeline.monocular.lift_single_view`)."""
+    size and time (:func:`rmpl.pipeline.monocular.lift_single_view`). With ``auto_model``
+    (no ``--model`` given) and no floor known, the model is ``rmpl.cli.run.ONE_CAMERA_NO_FLOOR``
+    (the floor model was chosen with the floor given; docs/results.md)."""
+    from dataclasses import replace
+
     from rmpl.pipeline.monocular import lift_single_view
 
     up = None if cfg.up is None else np.asarray(cfg.up, float)
     floor = resolve_floor(floor_spec, inputs.rig, up)
+    if auto_model and floor is None:
+        from rmpl.cli.run import ONE_CAMERA_NO_FLOOR
+
+        log.info("no floor: lifting with --model %s and the body-size prior", ONE_CAMERA_NO_FLOOR)
+        cfg = replace(cfg, model=ONE_CAMERA_NO_FLOOR)
     if temporal and cfg.filter == "butterworth" and inputs.fps is not None:
         from rmpl.pipeline.runner import check_cutoff
 
@@ -212,14 +221,15 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     out = check_output(args.out)
     inputs = load_calibration_and_2d(args)
     check_cameras(inputs.rig, args.calib, method)
-    if config.get("model", "") is None:  # rmpl lift without --model: rmpl run's per-frame rule
+    auto_model = config.get("model", "") is None
+    if auto_model:  # rmpl lift without --model: rmpl run's per-frame rule
         from rmpl.cli.run import per_frame_model
 
         config["model"] = per_frame_model(len(inputs.rig))
     cfg = RunConfig(method=method, **config)
     floor = getattr(args, "floor", None)
     if one_camera(inputs.rig, method, cfg.model):
-        poses = run_one_camera(inputs, cfg, floor, temporal=False)
+        poses = run_one_camera(inputs, cfg, floor, temporal=False, auto_model=auto_model)
     else:
         if floor is not None:
             log.warning(

@@ -152,7 +152,8 @@ def default_model(num_cameras: int, fps: float | None, method: str) -> str:
     """``rmpl run``'s model when ``--model`` is not given: the temporal model (whole tracks,
     chosen by the rule in docs/results.md) with two or more cameras and a known frame rate;
     otherwise the per-frame model ``floor26``, saying why; with one camera ``floor26`` too,
-    given the floor (docs/results.md: both chosen by rules set before the runs)."""
+    given the floor (docs/results.md: both chosen by rules set before the runs), and
+    without a floor :data:`ONE_CAMERA_NO_FLOOR` (decided when the floor is resolved)."""
     if method != "rmpl" or num_cameras < 2:
         return per_frame_model(num_cameras)
     if fps is None:
@@ -170,8 +171,9 @@ def per_frame_model(num_cameras: int) -> str:
 
 
 #: ``rmpl run``'s shipped models when ``--model`` is not given (docs/results.md says how each
-#: was chosen): per frame, and over whole tracks.
+#: was chosen): per frame, over whole tracks, one camera with a floor and without one.
 PER_FRAME, TEMPORAL, ONE_CAMERA = "floor26", "temporal26", "floor26"
+ONE_CAMERA_NO_FLOOR = "default"
 
 
 def _warn_unused_filter(args: argparse.Namespace) -> None:
@@ -213,6 +215,7 @@ def run(args: argparse.Namespace) -> int:
     up = axis_vector(args.up)
     inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
     check_cameras(inputs.rig, args.calib, args.method)
+    auto_model = args.model is None
     args.model = args.model or default_model(len(inputs.rig), inputs.fps, args.method)
     cfg = RunConfig(
         method=args.method,
@@ -233,7 +236,7 @@ def run(args: argparse.Namespace) -> int:
             "body size and time"
         )
     if single:  # depth from the floor, body size and time (it says so in the log)
-        poses = run_one_camera(inputs, cfg, args.floor, temporal=True)
+        poses = run_one_camera(inputs, cfg, args.floor, temporal=True, auto_model=auto_model)
     else:
         if args.floor is not None:
             log.warning(

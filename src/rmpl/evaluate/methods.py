@@ -22,12 +22,16 @@ COCO-17 ones and the depth moves all).
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rmpl.errors import InputError
 from rmpl.geometry import Rig, triangulate, triangulate_robust
 from rmpl.skeleton import COCO17, HALPE26
+
+if TYPE_CHECKING:
+    from rmpl.pipeline.monocular import MonocularConfig
 
 __all__ = [
     "INPUT_SETS",
@@ -119,15 +123,28 @@ class MonocularMethod:
         from rmpl.pipeline.monocular import MonocularConfig
 
         cues, _, named = cues.partition("@")
-        model = named or model
+        self._model = named or model
+        self._cues = cues
         if cues:
-            extra = MonocularConfig.for_model(model)
-            self.config = MonocularConfig.from_cues(cues, lifter_sd=extra.lifter_sd)
-        else:
-            self.config = MonocularConfig()
+            MonocularConfig.from_cues(cues)  # a bad spec fails here, not at the first frame
         self.floor = None
         self.floor_rule = "convention"
-        self._lifter = Lifter.from_pretrained(model)
+        self._lifter = Lifter.from_pretrained(self._model)
+
+    def config_for(self, floor) -> MonocularConfig:
+        """The cues given, or ``rmpl run``'s for the model with this floor (None: no floor)
+        (:meth:`rmpl.pipeline.monocular.MonocularConfig.for_model`)."""
+        from rmpl.pipeline.monocular import MonocularConfig
+
+        run = MonocularConfig.for_model(self._model, floor_known=floor is not None)
+        if not self._cues:
+            return run
+        return MonocularConfig.from_cues(self._cues, lifter_sd=run.lifter_sd)
+
+    @property
+    def config(self) -> MonocularConfig:
+        """The cues with a known floor (:meth:`config_for`)."""
+        return self.config_for(self.floor or True)
 
     @property
     def sequence(self) -> bool:
@@ -174,7 +191,8 @@ class MonocularMethod:
                 return self._multi_view(kp, sc, rig)
             floor = self._floor(rig)
             up = None if floor is None else floor.n
-            cfg = replace(self.config, cues=tuple(c for c in self.config.cues if c != "time"))
+            cfg = self.config_for(floor)
+            cfg = replace(cfg, cues=tuple(c for c in cfg.cues if c != "time"))
             frame = np.arange(len(kp))
             res = monocular_people(kp, sc, frame, len(kp), rig, None, floor, cfg,
                                    lift=self._lift_fn(up, floor))  # fmt: skip
@@ -193,7 +211,7 @@ class MonocularMethod:
             if rows.any():
                 p, t = lift_stretch(
                     kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step, floor,
-                    self.config, lift=fn,
+                    self.config_for(floor), lift=fn,
                 )  # fmt: skip
                 preds.append(p)
                 at.append(t + a)

@@ -173,15 +173,19 @@ class MonocularConfig:
         return cls(cues=cues, **overrides)
 
     @classmethod
-    def for_model(cls, model: str) -> MonocularConfig:
-        """The cues ``rmpl run`` uses with a per-frame model: all three, or for a model that
-        reads the floor (:attr:`rmpl.inference.Lifter.reads_floor`; its depth already uses
-        the floor and its learnt body sizes) time alone, with that model's one-view depth
-        error (:data:`FLOOR_MODEL_LIFTER_SD`)."""
+    def for_model(cls, model: str, floor_known: bool = True) -> MonocularConfig:
+        """The cues ``rmpl run`` uses with a per-frame model: all three; for a model that
+        reads the floor (:attr:`rmpl.inference.Lifter.reads_floor`) and a known floor, time
+        alone, with that model's one-view depth error (:data:`FLOOR_MODEL_LIFTER_SD`): its
+        depth already uses the floor and its learnt body sizes; without a floor its depth is
+        no better than another model's, so the size prior and time, as before (chosen on
+        held-out MHP sequences, docs/results.md)."""
         from rmpl.inference import checkpoint_reads_floor
 
         if checkpoint_reads_floor(model):
-            return cls(cues=("time",), lifter_sd=FLOOR_MODEL_LIFTER_SD)
+            if floor_known:
+                return cls(cues=("time",), lifter_sd=FLOOR_MODEL_LIFTER_SD)
+            return cls(cues=("size", "time"))
         return cls()
 
 
@@ -767,7 +771,7 @@ def lift_single_view(
     from rmpl.pipeline.runner import RunConfig, drop_far, smooth
 
     cfg = config or RunConfig()
-    mono = monocular or MonocularConfig.for_model(cfg.model)
+    mono = monocular or MonocularConfig.for_model(cfg.model, floor_known=floor is not None)
     if len(rig) != 1:
         raise ValueError(f"lift_single_view takes one camera, got {len(rig)}")
     T = keypoints.shape[0]
