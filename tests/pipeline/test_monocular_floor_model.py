@@ -108,3 +108,15 @@ def test_one_camera_without_a_floor_and_without_model_lifts_with_the_no_floor_mo
     args = ["lift", *io, "--floor", "none", "--model", ONE_CAMERA_NO_FLOOR, "--out", str(given)]
     assert main(args) == 0
     assert np.array_equal(load_poses(auto).points, load_poses(given).points)
+
+
+def test_evaluate_method_names_a_model_with_or_without_cues(floor_model):
+    from rmpl.evaluate.methods import MonocularMethod, parse_methods
+
+    methods = parse_methods(f"rmpl+floor@{floor_model},rmpl+floor:none@{floor_model}")
+    a, b = methods.values()
+    assert isinstance(a, MonocularMethod) and isinstance(b, MonocularMethod)
+    assert a.config_for(None).cues == ("size", "time")  # the run's choice without a floor
+    assert a.config.cues == ("time",) and b.config.cues == ()
+    with pytest.raises(InputError):
+        parse_methods("rmpl+flor@floor26")

@@ -232,13 +232,21 @@ METHODS: dict[str, Callable[[str], Method]] = {
 }
 
 
+def _spec_parts(spec: str) -> tuple[str, str, str]:
+    """``name:arg``, or ``name@MODEL`` (``rmpl+floor@floor26``) as ``name``, ``:``, ``@MODEL``."""
+    if "@" in spec and ":" not in spec:
+        name, _, model = spec.partition("@")
+        return name, ":", "@" + model
+    return spec.partition(":")
+
+
 def make_method(spec: str) -> Method:
     """A method from ``name`` or ``name:argument`` (e.g. ``rmpl:runs/x``).
 
     Raises:
         ValueError: an unknown name.
     """
-    name, _, arg = spec.partition(":")
+    name, _, arg = _spec_parts(spec)
     if name not in METHODS:
         raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
     return METHODS[name](arg)
@@ -262,7 +270,7 @@ def parse_methods(spec: str) -> dict[str, Method]:
     )
 
     for name in names:
-        if name.partition(":")[0] not in METHODS and not is_sequence_method(name):
+        if _spec_parts(name)[0] not in METHODS and not is_sequence_method(name):
             accepted = ", ".join([*METHODS, *SEQUENCE_METHODS])
             raise InputError(None, "--methods", f"methods among {accepted} (rmpl:MODEL)", name)
     return {
