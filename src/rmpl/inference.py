@@ -44,13 +44,15 @@ _WEIGHTS = Path(__file__).parent / "weights"
 #: (p=0.4), better when many keypoints are missing; ``halpe26``: HALPE-26 (COCO-17 + head
 #: top, neck, mid-hip and feet), ``default`` fine-tuned on anny bodies; ``floor26``:
 #: ``halpe26`` fine-tuned with the floor plane as an input (``Lifter.lift(floor=)``) and many
-#: one-view batches, what ``rmpl run`` and ``rmpl lift`` use per frame unless told otherwise
+#: one-view batches, what ``rmpl run`` and ``rmpl lift`` use per frame unless told otherwise;
+#: ``scenes26``: ``halpe26`` fine-tuned with multi-person scenes as well (opt-in)
 #: (docs/results.md says how each was chosen).
 PRETRAINED: dict[str, Path] = {
     "default": _WEIGHTS / "default",
     "occlusion": _WEIGHTS / "occlusion",
     "halpe26": _WEIGHTS / "halpe26",
     "floor26": _WEIGHTS / "floor26",
+    "scenes26": _WEIGHTS / "scenes26",
 }
 
 

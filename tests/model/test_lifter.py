@@ -218,7 +218,7 @@ def test_robust_anchor_model_starts_at_robust_triangulation():
             RMPLConfig(robust_anchor=bad)
 
 
-@pytest.mark.parametrize("name", ["default", "occlusion"])
+@pytest.mark.parametrize("name", ["default", "occlusion", "halpe26", "floor26", "scenes26"])
 def test_shipped_models_load_and_lift(name):
     """Every shipped model loads by name and lifts exact 2D from 3 views close to the truth."""
     from rmpl.geometry.camera import Camera, Rig, look_at
@@ -238,9 +238,15 @@ def test_shipped_models_load_and_lift(name):
     from tests.cli.test_evaluate import standing_poses
 
     X = standing_poses(8, rng).astype(float)
-    out = lifter.lift(rig.project(X), np.full((8, 3, 17), 0.9), rig).points
+    out = lifter.lift(rig.project(X), np.full((8, 3, 17), 0.9), rig).points[:, :17]
     assert np.isfinite(out).all()
     assert np.linalg.norm(out - X, axis=-1).mean() < 0.1
+    if lifter.reads_floor:  # the floor given (standing_poses stand on z = 0)
+        from rmpl.geometry.floor import Floor
+
+        floor = Floor((0.0, 0.0, 1.0), 0.0)
+        out = lifter.lift(rig.project(X), np.full((8, 3, 17), 0.9), rig, floor=floor).points
+        assert np.linalg.norm(out[:, :17] - X, axis=-1).mean() < 0.1
 
 
 def test_model_help_names_every_shipped_model():

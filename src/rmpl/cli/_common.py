@@ -15,7 +15,8 @@ from rmpl.geometry.camera import Rig
 #: here so that building the parser does not import torch).
 MODEL_HELP = (
     "shipped model (floor26: per frame, COCO-17 + head top, neck, mid-hip and feet, reads the "
-    "floor with one camera; halpe26: the same without the floor; default: per frame, COCO-17; "
+    "floor with one camera; halpe26: the same without the floor; scenes26: halpe26 also "
+    "trained on multi-person scenes; default: per frame, COCO-17; "
     "occlusion: COCO-17, for many missing keypoints; temporal26 / temporal: whole tracks, "
     "HALPE-26 / COCO-17, need a frame rate) or checkpoint folder"
 )
