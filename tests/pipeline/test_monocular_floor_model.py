@@ -120,3 +120,34 @@ def test_evaluate_method_names_a_model_with_or_without_cues(floor_model):
     assert a.config.cues == ("time",) and b.config.cues == ()
     with pytest.raises(InputError):
         parse_methods("rmpl+flor@floor26")
+
+
+def test_one_video_or_view_of_a_larger_calibration_uses_that_camera(tmp_path, floor_model):
+    """2D for one camera of a 2-camera calibration, named like it: that camera is used
+    (as with a one-camera calibration); a name no camera has is refused."""
+    from rmpl.io.calibration import load_rig
+
+    io = _io(tmp_path)
+    one = load_rig(tmp_path / "calib.toml")
+    cam = one.cameras[0]
+    other = Camera(cam.K, cam.R, cam.t + np.array([0.5, 0, 0]), size=cam.size, name="other")
+    save_rig(Rig((other, cam)), tmp_path / "two.toml")
+    outs = {}
+    for calib in ("calib.toml", "two.toml"):
+        out = tmp_path / f"{calib}.npz"
+        args = ["lift", "--calib", str(tmp_path / calib), *io[2:], "--model", str(floor_model),
+                "--floor", "z=0", "--out", str(out)]  # fmt: skip
+        assert main(args) == 0
+        outs[calib] = load_poses(out).points
+    assert np.array_equal(outs["calib.toml"], outs["two.toml"])
+    save_rig(Rig((other, Camera(cam.K, cam.R, cam.t, size=cam.size, name="third"))),
+             tmp_path / "none.toml")  # fmt: skip
+    args = [
+        "lift",
+        "--calib",
+        str(tmp_path / "none.toml"),
+        *io[2:],
+        "--out",
+        str(tmp_path / "x.npz"),
+    ]
+    assert main(args) == 2

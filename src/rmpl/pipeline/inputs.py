@@ -4,7 +4,8 @@
 Shelf/4D-association folder, or a 2D detector (``detect2d.DETECTORS``) on videos / image
 folders with a cache and a fingerprint of the inputs), and matches the 2D views to the
 cameras by name (by order, with a warning, only when no name matches; a partial match is
-refused).
+refused). Fewer views than cameras, each named like one of them (``--videos cam01.mp4``
+with a 4-camera calibration), use those cameras only, and say so.
 
 The 2D keeps the joints its source gives beyond COCO-17: a file or detector with feet, neck,
 head top or mid-hip gives HALPE-26 (:func:`rmpl.io.keypoints.load_keypoints`), otherwise
@@ -141,18 +142,24 @@ def _load_2d(spec: InputSpec, cache: Path | None):
 def _check_detection_inputs(spec, kind: str, sources: list[str], detector: str) -> dict:
     """Every check that can fail, before the (long) detection; returns the inputs' stamp."""
     from rmpl.io.calibration import load_rig
-    from rmpl.pipeline.detect2d import check_image_folders, check_videos, input_fingerprint
+    from rmpl.pipeline.detect2d import (
+        check_image_folders,
+        check_videos,
+        input_fingerprint,
+        view_names,
+    )
 
     if kind == "videos":
         check_videos(sources)
     else:
         check_image_folders(sources)
     rig = load_rig(spec.calib)
-    if len(rig) != len(sources):
+    if len(rig) != len(sources) and not _names_subset(view_names(sources), rig):
         raise InputError(
             spec.calib,
             "cameras",
-            f"one camera per {kind[:-1]}: {len(sources)} cameras for {', '.join(sources)}",
+            f"one camera per {kind[:-1]}: {len(sources)} cameras for {', '.join(sources)} "
+            "(or fewer inputs, each named like one of the cameras)",
             f"{len(rig)} cameras {rig.names}",
         )
     return {
@@ -197,12 +204,21 @@ def load_inputs(spec: InputSpec, cache: Path | None = None) -> Inputs:
 
     rig = load_rig(spec.calib)
     kp = _load_2d(spec, cache)
+    if len(kp.views) < len(rig) and _names_subset(list(kp.views), rig):
+        log.info("2D for %d of the %d cameras of %s: using cameras %s", len(kp.views), len(rig),
+                 spec.calib, list(kp.views))  # fmt: skip
+        rig = rig[[rig.names.index(v) for v in kp.views]]
     keypoints, scores = _match_views(kp, rig, spec)
     if not (scores > 0).any():
         raise InputError(
             spec.source, "scores", "at least one keypoint with confidence > 0", "all zero"
         )
     return Inputs(rig, keypoints, scores, np.asarray(kp.frames), kp.fps or spec.fps, kp.skeleton)
+
+
+def _names_subset(views: list[str], rig: Rig) -> bool:
+    """Fewer distinct views than cameras, every one named like a camera."""
+    return 0 < len(set(views)) == len(views) < len(rig) and set(views) <= set(rig.names)
 
 
 def _match_views(kp, rig: Rig, spec: InputSpec) -> tuple[np.ndarray, np.ndarray]:

@@ -830,6 +830,10 @@ def _log_summary(
         if depth is None:
             continue
         n = int(np.isfinite(depth.log_depth).sum())
+        if "floor" not in mono.cues and "size" not in mono.cues:
+            log.info("person %d: %d frames, the lifter's depth smoothed along the track",
+                     int(res.ids[p]), n)  # fmt: skip
+            continue
         log.info(
             "person %d: %d frames, %d with the feet on the floor (%.0f%%); stature %.2f m "
             "+- %.2f%s", int(res.ids[p]), n, int(depth.contact.sum()),
