@@ -151,3 +151,18 @@ def test_one_video_or_view_of_a_larger_calibration_uses_that_camera(tmp_path, fl
         str(tmp_path / "x.npz"),
     ]
     assert main(args) == 2
+
+
+def test_a_convention_floor_widens_the_radius_and_says_so(tmp_path, floor_model, caplog):
+    """The same plane, once given (--floor z=0) and once taken from the calibration's
+    convention: the same poses, a wider uncertainty and a warning for the guess."""
+    io = _io(tmp_path)
+    given, guessed = tmp_path / "given.npz", tmp_path / "guessed.npz"
+    base = ["lift", *io, "--model", str(floor_model)]
+    assert main([*base, "--floor", "z=0", "--out", str(given)]) == 0
+    with caplog.at_level(logging.WARNING):
+        assert main([*base, "--out", str(guessed)]) == 0
+    assert "calibration's convention" in caplog.text and "not measured" in caplog.text
+    a, b = load_poses(given), load_poses(guessed)
+    assert np.allclose(a.points, b.points)
+    assert (b.uncertainty > 1.1 * a.uncertainty).all()  # 0.05 m / 2.5 m beside 0.033

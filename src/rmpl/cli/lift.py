@@ -24,7 +24,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default=None,
-        help=MODEL_HELP + ". Default: floor26",
+        help=MODEL_HELP + ". Default: floor26 (one camera without a floor: default)",
     )
     parser.add_argument(
         "--up",

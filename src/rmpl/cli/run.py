@@ -232,8 +232,8 @@ def run(args: argparse.Namespace) -> int:
     if len(inputs.rig) == 1 and args.method == "rmpl" and not single:
         log.warning(
             "ONE CAMERA with the temporal model: nothing fixes the depth along the rays "
-            "(expect errors of 0.3 m or more); --model floor26 takes depth from the floor, "
-            "body size and time"
+            "(expect errors of 0.3 m or more); --model floor26 reads the floor (with none, the "
+            "default one-camera path uses body size and time)"
         )
     if single:  # depth from the floor, body size and time (it says so in the log)
         poses = run_one_camera(inputs, cfg, args.floor, temporal=True, auto_model=auto_model)

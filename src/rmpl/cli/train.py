@@ -78,6 +78,9 @@ def load_poses(path: str, on_floor: bool = False):
 
     p = Path(path)
     if on_floor:
+        if p.is_dir():
+            raise InputError(path, "poses", "a sequence bank (rmpl poses --sequences) for "
+                             "sampler.keep_height", "a folder")  # fmt: skip
         if not p.is_file():
             raise InputError(path, "poses", "a sequence bank (rmpl poses --sequences) for "
                              "sampler.keep_height", "no such file")  # fmt: skip

@@ -192,7 +192,10 @@ def set_floor(methods: dict, spec: str | None, evset=None) -> str:
     for m in mono:
         m.floor, m.floor_rule = floor, rule
     return (
-        "rmpl+floor (one view: the shipped lifter, depth from the floor, body size and time; "
-        "with the time cue its people are tracked and filtered as rmpl run does; with 2+ "
-        f"views it is rmpl): floor {text}"
+        "rmpl+floor (one view, also as rmpl+floor:CUES@MODEL: the lifter, `default` or "
+        "MODEL, then depth from the cues: by default the floor, body size and time, or for a "
+        "model that reads the floor, its own depth and time; with the time cue its people are "
+        "tracked and filtered as rmpl run does; with 2+ views it is the plain lifter, given "
+        "the floor if it reads "
+        f"one): floor {text}"
     )

@@ -79,6 +79,11 @@ CUES = ("floor", "size", "time")
 #: with a real detector, one view, the floor given (``scripts/floor_select.py``; docs/results.md,
 #: "A lifter that reads the floor"). The tails are heavier (plain sd 0.124).
 FLOOR_MODEL_LIFTER_SD = 0.033
+#: The floor error assumed when the floor is the calibration's convention (its origin on the
+#: floor), metres: a guess, not a measurement (Shelf's z = 0 is 9 cm off, a Qualisys L-frame's
+#: about 0). It widens the uncertainty of a floor-reading model's depth by this / the
+#: camera's height (the depth itself is unchanged).
+CONVENTION_FLOOR_SD = 0.05
 #: (shoulder height - ankle height) / stature for adults: 0.818 - 0.039 (Winter's segment
 #: ratios); shin + thigh + trunk (mid-hip to mid-shoulder) spans it.
 STATURE_RATIO = 0.779
@@ -772,6 +777,15 @@ def lift_single_view(
 
     cfg = config or RunConfig()
     mono = monocular or MonocularConfig.for_model(cfg.model, floor_known=floor is not None)
+    guess = 0.0  # log-depth error of a guessed floor, added to the uncertainty only
+    if _guessed_floor_model(cfg.model, floor):
+        h = max(float(signed_distance(rig.centers[0], floor)), 0.2)
+        guess = CONVENTION_FLOOR_SD / h
+        log.warning(
+            "the floor is the calibration's convention (%s), not measured: a floor off by e "
+            "moves the person by about e x distance / %.2f m along the rays (give --floor, or "
+            "a multi-view poses file of this rig)", floor.describe(), h,
+        )  # fmt: skip
     if len(rig) != 1:
         raise ValueError(f"lift_single_view takes one camera, got {len(rig)}")
     T = keypoints.shape[0]
@@ -795,6 +809,7 @@ def lift_single_view(
 
         filled, _ = fill_gaps(sigma[..., None, None].repeat(3, -1), max_gap=cfg.max_gap)
         sigma = filled[..., 0, 0]
+    sigma = np.hypot(sigma, guess)
     radius = RADIUS_50_1D * sigma[..., None] * np.linalg.norm(tracks - rig.centers[0], axis=-1)
     radius = np.where(ok, radius, np.nan)
     from rmpl.inference import checkpoint_reads_floor
@@ -812,6 +827,17 @@ def lift_single_view(
     )
 
 
+def _guessed_floor_model(model: str, floor: Floor | None) -> bool:
+    """A floor-reading model on a floor taken from the calibration's convention."""
+    from rmpl.inference import checkpoint_reads_floor
+
+    return (
+        floor is not None
+        and floor.source.startswith("calibration convention")
+        and (checkpoint_reads_floor(model))
+    )
+
+
 def _log_summary(
     res: MonocularResult, radius: np.ndarray, floor, mono: MonocularConfig, reads_floor=False
 ) -> None:
@@ -821,7 +847,7 @@ def _log_summary(
     if reads_floor:
         cues = f"the lifter's own, learnt from the floor and body sizes; then {cues}"
         if floor is None:
-            where = "no floor (the lifter's learnt body sizes only: expect a coarse depth)"
+            where = "no floor (body size and time only: expect a coarse depth)"
     log.info(
         "one camera: depth along the rays comes from priors, not from triangulation (cues: "
         "%s); floor: %s", cues, where,

@@ -274,10 +274,11 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
 
 
 ONE_CAMERA_STATEMENT = (
-    "One camera: nothing triangulates the depth along each joint's ray. It comes from priors: "
-    "where the floor is, how tall people are, that a person's size is constant and their "
-    "distance changes smoothly (the run's log says which applied). Sideways, seen from the "
-    "camera, the joints are as good as the 2D; their distance from the camera is an estimate"
+    "One camera: nothing triangulates the depth along each joint's ray. It comes from what the "
+    "model learnt and from priors: where the floor is, how tall people are, that a person's "
+    "size is constant and their distance changes smoothly (the run's log says which applied; "
+    "without a floor or a body-size prior it is coarse). Sideways, seen from the camera, the "
+    "joints are as good as the 2D; their distance from the camera is an estimate"
 )
 
 
