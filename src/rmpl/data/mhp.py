@@ -126,6 +126,12 @@ def _load(
                 elif k not in optional:
                     raise InputError(p, k, "the array", "missing")
     d = {k: np.concatenate(v) for k, v in parts.items()}
+    return _selected(d, root, subjects, exclude_subjects, joints, stored, what)
+
+
+def _selected(d, root, subjects, exclude_subjects, joints, stored: str, what: str) -> dict:
+    """The entries of the selected subjects, in the joint set asked for, keypoints NaN where
+    the score is 0 (shared by the single-frame, sequence and scene readers)."""
     keep = np.ones(len(d["joints3d"]), bool)
     if subjects is not None:
         keep &= np.isin(d["subject"], list(subjects))

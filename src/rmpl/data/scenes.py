@@ -103,7 +103,7 @@ def load_scene_pairs(
         InputError: not a scene directory, another joint set, no shards, a missing or
             malformed array, or no body selected.
     """
-    from rmpl.data.mhp import _in_joint_set
+    from rmpl.data.mhp import _selected
 
     root = Path(root)
     stored = _stored_joint_set(root)
@@ -115,23 +115,7 @@ def load_scene_pairs(
     if len(views) > 1:
         raise InputError(root, "views", "one number of views in every shard", views)
     d = {k: np.concatenate(v) for k, v in parts.items()}
-    keep = np.ones(len(d["joints3d"]), bool)
-    if subjects is not None:
-        keep &= np.isin(d["subject"], list(subjects))
-    keep &= ~np.isin(d["subject"], list(exclude_subjects))
-    if not keep.any():
-        raise InputError(
-            root,
-            "subject",
-            f"bodies of subjects {subjects} not in {list(exclude_subjects)}",
-            sorted(set(d["subject"].tolist())),
-        )
-    d = {k: v[keep] for k, v in d.items()}
-    if joints is not None and joints != stored:
-        d = _in_joint_set(d, stored, joints)
-    missed = d["scores"] <= 0
-    d["keypoints"] = np.where(missed[..., None], np.nan, d["keypoints"]).astype(np.float32)
-    return d
+    return _selected(d, root, subjects, exclude_subjects, joints, stored, "bodies")
 
 
 def _stored_joint_set(root: Path) -> str:
