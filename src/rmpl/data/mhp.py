@@ -92,31 +92,44 @@ def _in_joint_set(d: dict, stored: str, joints: str) -> dict:
     return out
 
 
-def _load(
-    root, fmt: str, keys, optional, subjects, exclude_subjects, what: str, joints=None
-) -> dict:
-    """The arrays ``keys`` of every finished shard of ``root`` (manifest format ``fmt``),
-    concatenated, the subject selection applied, in joint set ``joints`` (None: as stored),
-    keypoints NaN where the score is 0."""
-    from rmpl.synth.generate import FORMAT, SEQUENCE_FORMAT, list_shards
+def _manifest_and_shards(root: Path, fmt: str) -> tuple[str, list[Path]]:
+    """The joint set the manifest of ``root`` names and its finished shards, checked: a
+    manifest of format ``fmt`` (a wrong one names the reader to use), COCO-17 or HALPE-26,
+    at least one shard."""
+    from rmpl.synth.generate import FORMAT, SCENE_FORMAT, SEQUENCE_FORMAT, list_shards
 
-    root = Path(root)
     manifest = root / "manifest.json"
     if not manifest.is_file():
         raise InputError(root, "manifest.json", "an MHP directory made by rmpl generate", "none")
-    meta = json.loads(manifest.read_text())
-    if meta.get("format") != fmt:
+    try:
+        meta = json.loads(manifest.read_text())
+    except json.JSONDecodeError as e:
+        raise InputError(manifest, None, "JSON", e) from None
+    got = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
+    if got != fmt:
         hint = {
-            FORMAT: " (a single-frame set: read it with load_mhp)",
+            FORMAT: " (a single-frame, single-body set: read it with load_mhp)",
             SEQUENCE_FORMAT: " (a sequence set: read it with load_mhp_sequences)",
-        }.get(meta.get("format"), "")
-        raise InputError(manifest, "format", repr(fmt), f"{meta.get('format')!r}{hint}")
+            SCENE_FORMAT: " (a scene set: read it with load_mhp or load_scene_pairs)",
+        }.get(got, "")
+        raise InputError(manifest, "format", repr(fmt), f"{got!r}{hint}")
     stored = next((k for k in _JOINT_SETS if meta.get("joints") == list(SKELETONS[k].joints)), None)
     if stored is None:
         raise InputError(manifest, "joints", "COCO-17 or HALPE-26", meta.get("joints"))
     shards = list_shards(root)
     if not shards:
         raise InputError(root, None, "finished shards (shard_*.npz)", "none")
+    return stored, shards
+
+
+def _load(
+    root, fmt: str, keys, optional, subjects, exclude_subjects, what: str, joints=None
+) -> dict:
+    """The arrays ``keys`` of every finished shard of ``root`` (manifest format ``fmt``),
+    concatenated, the subject selection applied, in joint set ``joints`` (None: as stored),
+    keypoints NaN where the score is 0."""
+    root = Path(root)
+    stored, shards = _manifest_and_shards(root, fmt)
     parts: dict[str, list] = {}
     for p in shards:
         with np.load(p, allow_pickle=False) as z:

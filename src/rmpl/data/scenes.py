@@ -103,12 +103,13 @@ def load_scene_pairs(
         InputError: not a scene directory, another joint set, no shards, a missing or
             malformed array, or no body selected.
     """
-    from rmpl.data.mhp import _selected
+    from rmpl.data.mhp import _manifest_and_shards, _selected
+    from rmpl.synth.generate import SCENE_FORMAT
 
     root = Path(root)
-    stored = _stored_joint_set(root)
+    stored, shards = _manifest_and_shards(root, SCENE_FORMAT)
     parts: dict[str, list] = {}
-    for path in _shards(root):
+    for path in shards:
         for k, v in _shard_pairs(path).items():
             parts.setdefault(k, []).append(v)
     views = sorted({v.shape[1] for v in parts["scores"]})
@@ -116,41 +117,6 @@ def load_scene_pairs(
         raise InputError(root, "views", "one number of views in every shard", views)
     d = {k: np.concatenate(v) for k, v in parts.items()}
     return _selected(d, root, subjects, exclude_subjects, joints, stored, "bodies")
-
-
-def _stored_joint_set(root: Path) -> str:
-    """The joint set a scene directory's manifest names (checked: format, joints)."""
-    from rmpl.data.mhp import _JOINT_SETS
-    from rmpl.skeleton import SKELETONS
-    from rmpl.synth.generate import FORMAT, SCENE_FORMAT, SEQUENCE_FORMAT
-
-    manifest = root / "manifest.json"
-    if not manifest.is_file():
-        raise InputError(root, "manifest.json", "a scene directory made by rmpl generate", "none")
-    try:
-        meta = json.loads(manifest.read_text())
-    except json.JSONDecodeError as e:
-        raise InputError(manifest, None, "JSON", e) from None
-    if not isinstance(meta, dict) or meta.get("format") != SCENE_FORMAT:
-        got = meta.get("format") if isinstance(meta, dict) else type(meta).__name__
-        hint = {
-            FORMAT: " (a single-body set: read it with load_mhp)",
-            SEQUENCE_FORMAT: " (a sequence set: read it with load_mhp_sequences)",
-        }.get(got, "")
-        raise InputError(manifest, "format", repr(SCENE_FORMAT), f"{got!r}{hint}")
-    stored = next((k for k in _JOINT_SETS if meta.get("joints") == list(SKELETONS[k].joints)), None)
-    if stored is None:
-        raise InputError(manifest, "joints", "COCO-17 or HALPE-26", meta.get("joints"))
-    return stored
-
-
-def _shards(root: Path) -> list[Path]:
-    from rmpl.synth.generate import list_shards
-
-    shards = list_shards(root)
-    if not shards:
-        raise InputError(root, None, "finished shards (shard_*.npz)", "none")
-    return shards
 
 
 def _shard_pairs(path: Path) -> dict[str, np.ndarray]:
