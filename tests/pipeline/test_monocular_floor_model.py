@@ -116,7 +116,7 @@ def test_evaluate_method_names_a_model_with_or_without_cues(floor_model):
     methods = parse_methods(f"rmpl+floor@{floor_model},rmpl+floor:none@{floor_model}")
     a, b = methods.values()
     assert isinstance(a, MonocularMethod) and isinstance(b, MonocularMethod)
-    assert a.config_for(None).cues == ("size", "time")  # the run's choice without a floor
+    assert a.config_for(floor_known=False).cues == ("size", "time")  # the run's, no floor
     assert a.config.cues == ("time",) and b.config.cues == ()
     with pytest.raises(InputError):
         parse_methods("rmpl+flor@floor26")

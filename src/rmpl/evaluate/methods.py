@@ -131,20 +131,21 @@ class MonocularMethod:
         self.floor_rule = "convention"
         self._lifter = Lifter.from_pretrained(self._model)
 
-    def config_for(self, floor) -> MonocularConfig:
-        """The cues given, or ``rmpl run``'s for the model with this floor (None: no floor)
+    def config_for(self, floor_known: bool) -> MonocularConfig:
+        """The cues given, or ``rmpl run``'s for the model with or without a floor
         (:meth:`rmpl.pipeline.monocular.MonocularConfig.for_model`)."""
         from rmpl.pipeline.monocular import MonocularConfig
 
-        run = MonocularConfig.for_model(self._model, floor_known=floor is not None)
+        run = MonocularConfig.for_model(self._model, floor_known=floor_known)
         if not self._cues:
             return run
         return MonocularConfig.from_cues(self._cues, lifter_sd=run.lifter_sd)
 
     @property
     def config(self) -> MonocularConfig:
-        """The cues with a known floor (:meth:`config_for`)."""
-        return self.config_for(self.floor or True)
+        """The cues with a known floor (:meth:`config_for`; with or without one, they
+        include "time" alike)."""
+        return self.config_for(floor_known=True)
 
     @property
     def sequence(self) -> bool:
@@ -191,7 +192,7 @@ class MonocularMethod:
                 return self._multi_view(kp, sc, rig)
             floor = self._floor(rig)
             up = None if floor is None else floor.n
-            cfg = self.config_for(floor)
+            cfg = self.config_for(floor is not None)
             cfg = replace(cfg, cues=tuple(c for c in cfg.cues if c != "time"))
             frame = np.arange(len(kp))
             res = monocular_people(kp, sc, frame, len(kp), rig, None, floor, cfg,
@@ -211,7 +212,7 @@ class MonocularMethod:
             if rows.any():
                 p, t = lift_stretch(
                     kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step, floor,
-                    self.config_for(floor), lift=fn,
+                    self.config_for(floor is not None), lift=fn,
                 )  # fmt: skip
                 preds.append(p)
                 at.append(t + a)

@@ -773,12 +773,14 @@ def lift_single_view(
         :class:`Poses3D` in the lifter's joint set, per-joint uncertainty = the 50% radius
         of the depth error along the ray (metres).
     """
+    from rmpl.inference import checkpoint_reads_floor
     from rmpl.pipeline.runner import RunConfig, drop_far, smooth
 
     cfg = config or RunConfig()
     mono = monocular or MonocularConfig.for_model(cfg.model, floor_known=floor is not None)
+    reads_floor = checkpoint_reads_floor(cfg.model)
     guess = 0.0  # log-depth error of a guessed floor, added to the uncertainty only
-    if _guessed_floor_model(cfg.model, floor):
+    if reads_floor and floor is not None and floor.source.startswith("calibration convention"):
         h = max(float(signed_distance(rig.centers[0], floor)), 0.2)
         guess = CONVENTION_FLOOR_SD / h
         log.warning(
@@ -812,9 +814,7 @@ def lift_single_view(
     sigma = np.hypot(sigma, guess)
     radius = RADIUS_50_1D * sigma[..., None] * np.linalg.norm(tracks - rig.centers[0], axis=-1)
     radius = np.where(ok, radius, np.nan)
-    from rmpl.inference import checkpoint_reads_floor
-
-    _log_summary(res, radius, floor, mono, reads_floor=checkpoint_reads_floor(cfg.model))
+    _log_summary(res, radius, floor, mono, reads_floor)
     return Poses3D(
         points=tracks,
         flags=flags.astype(np.uint8),
@@ -824,17 +824,6 @@ def lift_single_view(
         fps=fps,
         person_ids=np.asarray(res.ids),
         uncertainty=radius,
-    )
-
-
-def _guessed_floor_model(model: str, floor: Floor | None) -> bool:
-    """A floor-reading model on a floor taken from the calibration's convention."""
-    from rmpl.inference import checkpoint_reads_floor
-
-    return (
-        floor is not None
-        and floor.source.startswith("calibration convention")
-        and (checkpoint_reads_floor(model))
     )
 
 
