@@ -174,10 +174,9 @@ class Lifter:
         return "onnx" if self._onnx is not None else "torch"
 
     def _forward(self, rays: np.ndarray, scores: np.ndarray, floor: np.ndarray | None = None):
-        if not self.reads_floor:
-            floor = None
+        """The network; ``floor`` (N, 4) rows are read only by a model that reads the floor."""
         if self._onnx is not None:
-            return self._onnx(rays, scores, floor) if self.reads_floor else self._onnx(rays, scores)
+            return self._onnx(rays, scores, floor)
         f = None if floor is None else torch.from_numpy(floor)
         return self.model(torch.from_numpy(rays), torch.from_numpy(scores), floor=f).numpy()
 
