@@ -28,6 +28,7 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.geometry.camera import project, rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
+from rmpl.data.synthetic import floor_rows
 from rmpl.io.atomic import atomic_path
 from rmpl.skeleton import COCO17, HALPE26
 from rmpl.synth.noise import (
@@ -362,6 +363,8 @@ class SequenceBatch:
         rays: (B, T, V, J, 6) float32; scores: (B, T, V, J) float32, 0 = missing.
         times: (B, T) float32 seconds. target: (B, T, J, 3) float32 metres.
         keypoints: (B, T, V, J, 2) pixels, NaN = missing. K, R, t: (B, V, ...) the rig.
+        floor: (B, 4) each window's floor ``[n, h]`` for a model that reads it, NaN rows =
+            not given; None = no floor at all (see :class:`rmpl.data.synthetic.Batch`).
     """
 
     rays: np.ndarray
@@ -372,6 +375,7 @@ class SequenceBatch:
     K: np.ndarray
     R: np.ndarray
     t: np.ndarray
+    floor: np.ndarray | None = None
 
 
 class SequenceSource:
@@ -386,6 +390,10 @@ class SequenceSource:
         seed: random seed.
         input_sets: with HALPE-26 motion, how often each kind of detector draws a window
             (see :class:`rmpl.data.synthetic.SamplerConfig`).
+        floor: (rate, height error sd in metres, tilt error sd in degrees): the share of
+            windows whose floor (z = 0: the bank's segments levelled by
+            :meth:`SequenceBank.on_floor`) is given, and its error; validation windows get
+            the exact floor. Rate 0: ``SequenceBatch.floor`` is None.
     """
 
     def __init__(
@@ -398,6 +406,7 @@ class SequenceSource:
         scale_range: tuple[float, float] = (0.88, 1.22),
         seed: int | None = None,
         input_sets: tuple[tuple[str, float], ...] = DEFAULT_INPUT_SETS,
+        floor: tuple[float, float, float] = (0.0, 0.02, 1.0),
     ) -> None:
         if len(bank) == 0:
             raise ValueError("the sequence bank has no segment")
@@ -415,6 +424,9 @@ class SequenceSource:
         self.joint_sigma = joint_sigmas(base.joint_sigma, bank.poses.shape[1])
         self.input_sets = check_input_sets(input_sets)
         self.camera_preset, self.room, self.scale_range = camera_preset, room, scale_range
+        if not 0 <= floor[0] <= 1 or min(floor[1:]) < 0:
+            raise ValueError(f"floor must be (rate in [0, 1], sd >= 0, sd >= 0), got {floor}")
+        self.floor = tuple(float(x) for x in floor)
         self.rng = np.random.default_rng(seed)
 
     def motion(self, B: int, T: int) -> tuple[np.ndarray, np.ndarray]:
@@ -475,6 +487,8 @@ class SequenceSource:
             kp = np.where(given[..., None], kp, np.nan)
         rays = rays_from_keypoints(kp, K=K[:, None], R=R[:, None], t=t[:, None])
         rays = np.where(sc[..., None] > 0, rays, 0.0)
+        rate, noise_m, tilt_deg = self.floor
+        noisy = (noise_m, tilt_deg) if train else (0.0, 0.0)
         return SequenceBatch(
             rays.astype(np.float32),
             sc.astype(np.float32),
@@ -484,6 +498,7 @@ class SequenceSource:
             K,
             R,
             t,
+            floor_rows(B, rate, *noisy, rng),  # drawn last: without a floor, nothing drawn
         )
 
 

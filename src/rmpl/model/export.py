@@ -19,10 +19,12 @@ def export_onnx(
     path: str | Path,
     output_names: tuple[str, ...] = ("joints",),
     num_joints: int | None = None,
+    floor: bool | None = None,
 ) -> Path:
     """Export ``model(rays, scores)`` to ONNX with dynamic batch and view axes (outputs
     ``output_names``, each with a dynamic batch axis). A model that reads the floor
-    (``config.floor``) takes a third input, ``floor`` (B, 4)."""
+    (``config.floor``, or ``floor=True`` for a wrapper taking it third) takes a third
+    input, ``floor`` (B, 4)."""
     model = model.eval()
     J = num_joints or model.config.num_joints
     rays = torch.randn(2, 3, J, 6)
@@ -30,8 +32,10 @@ def export_onnx(
     scores = torch.rand(2, 3, J)
     args, names, axes = (rays, scores), ["rays", "scores"], {"rays": {0: "B", 1: "V"}}
     axes |= {"scores": {0: "B", 1: "V"}}
-    if getattr(getattr(model, "config", None), "floor", False):
-        model = _WithFloor(model)
+    if floor is None:
+        floor = bool(getattr(getattr(model, "config", None), "floor", False))
+    if floor:
+        model = _WithFloor(model) if isinstance(model, RMPL) else model
         args, names = (*args, torch.tensor([[0.0, 0, 1, 0], [np.nan] * 4])), [*names, "floor"]
         axes |= {"floor": {0: "B"}}
     with warnings.catch_warnings():  # tracer notes on shape checks: harmless, not for users
@@ -97,8 +101,8 @@ class _EncodeOutputs(torch.nn.Module):
         super().__init__()
         self.model = model
 
-    def forward(self, rays: torch.Tensor, scores: torch.Tensor):
-        enc = self.model.encode(rays, scores)
+    def forward(self, rays: torch.Tensor, scores: torch.Tensor, floor: torch.Tensor | None = None):
+        enc = self.model.encode(rays, scores, floor=floor)
         answer = enc.base + self.model.head(enc.tokens)
         return answer, enc.base, enc.tokens, enc.valid.to(rays.dtype), enc.views.to(rays.dtype)
 
@@ -106,16 +110,29 @@ class _EncodeOutputs(torch.nn.Module):
 class OnnxEncoder:
     """:meth:`RMPL.encode` (and the answer) run by onnxruntime, for a frozen per-frame model.
 
-    ``__call__(rays (B, V, J, 6), scores (B, V, J))`` returns numpy arrays answer (B, J, 3),
-    base (B, J, 3), tokens (B, J, D), valid (B, J) and views (B, J) as floats.
+    ``__call__(rays (B, V, J, 6), scores (B, V, J)[, floor (B, 4)])`` returns numpy arrays
+    answer (B, J, 3), base (B, J, 3), tokens (B, J, D), valid (B, J) and views (B, J) as
+    floats; ``floor`` (NaN rows = unknown) is read by a model that reads the floor.
     """
 
     def __init__(self, model: RMPL, threads: int = 2) -> None:
         names = ("answer", "base", "tokens", "valid", "views")
         wrapper = _EncodeOutputs(model.eval())
+        self.floor = bool(model.config.floor)
         self.session = _session(
-            wrapper, threads, output_names=names, num_joints=model.config.num_joints
+            wrapper,
+            threads,
+            output_names=names,
+            num_joints=model.config.num_joints,
+            floor=self.floor,
         )
 
-    def __call__(self, rays: np.ndarray, scores: np.ndarray) -> tuple[np.ndarray, ...]:
-        return tuple(self.session.run(None, {"rays": rays, "scores": scores}))
+    def __call__(
+        self, rays: np.ndarray, scores: np.ndarray, floor: np.ndarray | None = None
+    ) -> tuple[np.ndarray, ...]:
+        feed = {"rays": rays, "scores": scores}
+        if self.floor:
+            if floor is None:
+                floor = np.full((len(rays), 4), np.nan, np.float32)
+            feed["floor"] = np.asarray(floor, np.float32)
+        return tuple(self.session.run(None, feed))

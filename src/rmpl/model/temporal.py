@@ -12,6 +12,10 @@ joint's error.
   from the frames around it, and it is masked out as a key of temporal attention.
 - **Time in seconds.** Each frame carries its timestamp; the transformer sees Fourier
   features of the time relative to the window's middle, so one model serves 10-120 fps.
+- **The floor.** With ``TemporalConfig.floor`` (and a per-frame model that reads the floor),
+  ``forward(..., floor=)`` takes each window's floor plane: every frame's per-frame answer is
+  made with it, and every token carries its starting point's height above it. Over a window
+  the feet's contacts and the body's constant size fix the depth one camera lacks.
 - **Uncertainty.** ``sigma`` is the scale of an isotropic 3D Gaussian on each joint's error:
   the error's norm is below ``1.538 sigma`` half of the time and below ``2.500 sigma`` 90% of
   the time (:data:`RADIUS_50`, :data:`RADIUS_90`). A scalar fitted after training on
@@ -30,7 +34,7 @@ import torch
 from torch import nn
 
 from rmpl.model.layers import Block
-from rmpl.model.lifter import RMPL
+from rmpl.model.lifter import RMPL, floor_parts
 from rmpl.skeleton import COCO17
 
 __all__ = ["RADIUS_50", "RADIUS_90", "TemporalConfig", "TemporalRMPL", "interpolate_missing"]
@@ -66,6 +70,9 @@ class TemporalConfig:
             does); the per-frame answer when no frame of the window triangulates the joint.
             The time to the nearest such frame is an input. False: always the per-frame
             answer (the first checkpoints).
+        floor: the model takes the floor plane (``forward(..., floor=)``): the per-frame
+            model (which must read the floor, ``RMPLConfig.floor``) is given it, and each
+            token its starting point's height above it. An unknown floor is NaN.
     """
 
     dim: int = 64
@@ -80,6 +87,7 @@ class TemporalConfig:
     interpolate_valid: bool = False
     body_token: bool = False
     fused_start: bool = False
+    floor: bool = False
 
     def __post_init__(self) -> None:
         if self.window < 2 or self.depth < 1 or self.dim % self.heads:
@@ -176,6 +184,8 @@ class TemporalRMPL(nn.Module):
         fc = frame_model.config
         if not (fc.geometric and fc.recenter and fc.inputs == "rays"):
             raise ValueError("the temporal model needs a per-frame model on rays (geometric)")
+        if c.floor and not fc.floor:
+            raise ValueError("TemporalConfig.floor needs a per-frame model that reads the floor")
         J = fc.num_joints
         self.token_in = nn.Linear(fc.dim, c.dim)
         self.point_in = nn.Linear(3 + 3 + 3, c.dim)  # answer, interpolated, base (centred)
@@ -183,6 +193,7 @@ class TemporalRMPL(nn.Module):
         self.flags_in = nn.Linear(5 if c.fused_start else 3, c.dim)
         self.time_in = nn.Linear(2 * c.time_frequencies, c.dim)
         self.body_in = nn.Linear(len(COCO17.bones), c.dim) if c.body_token else None
+        self.floor_in = nn.Linear(2, c.dim) if c.floor else None  # height above it, known
         self.missing = nn.Parameter(torch.zeros(1, 1, 1, c.dim))
         self.joint = nn.Parameter(torch.zeros(1, 1, J, c.dim))
         self.blocks = nn.ModuleList(_SpaceTimeBlock(c) for _ in range(c.depth))
@@ -208,6 +219,9 @@ class TemporalRMPL(nn.Module):
             if isinstance(m, nn.Linear):
                 nn.init.trunc_normal_(m.weight, std=0.02)
                 nn.init.zeros_(m.bias)
+        if self.floor_in is not None:  # zero: starts as the same model without the floor
+            nn.init.zeros_(self.floor_in.weight)
+            nn.init.zeros_(self.floor_in.bias)
         nn.init.zeros_(self.head.weight)
         nn.init.zeros_(self.head.bias)
         with torch.no_grad():  # start at sigma = 5 cm
@@ -223,10 +237,13 @@ class TemporalRMPL(nn.Module):
             self.frame_model.eval()
         return self
 
-    def encode_frames(self, rays: torch.Tensor, scores: torch.Tensor):
+    def encode_frames(
+        self, rays: torch.Tensor, scores: torch.Tensor, floor: torch.Tensor | None = None
+    ):
         """Run the per-frame model on every frame with a keypoint.
 
-        rays (B, T, V, J, 6), scores (B, T, V, J) -> answer (B, T, J, 3), base (B, T, J, 3),
+        rays (B, T, V, J, 6), scores (B, T, V, J) [, floor (B, 4), given to a per-frame model
+        that reads it] -> answer (B, T, J, 3), base (B, T, J, 3),
         tokens (B, T, J, Df), flags (B, T, J, 3), frame_ok (B, T) bool, and the ray of the most
         confident view of each joint (B, T, J, 6), zero where no view sees it.
         """
@@ -240,8 +257,11 @@ class TemporalRMPL(nn.Module):
         base = rays.new_zeros(B * T, J, 3)
         tokens = rays.new_zeros(B * T, J, Df)
         flags = rays.new_zeros(B * T, J, 3)
+        rows = None
+        if floor is not None and self.frame_model.config.floor:
+            rows = floor.to(rays.dtype).repeat_interleave(T, 0)[sel]  # (frames, 4)
         if len(sel):
-            ans, b, tok, valid, n = self._encode(flat_r[sel], flat_s[sel])
+            ans, b, tok, valid, n = self._encode(flat_r[sel], flat_s[sel], rows)
             f = torch.stack([valid, (n / 4).clamp(max=2), (n > 0).to(n)], -1)
             answer, base = answer.index_copy(0, sel, ans), base.index_copy(0, sel, b)
             tokens, flags = tokens.index_copy(0, sel, tok), flags.index_copy(0, sel, f)
@@ -267,11 +287,15 @@ class TemporalRMPL(nn.Module):
         self.fast_encoder = OnnxEncoder(self.frame_model, threads)
         return self
 
-    def _encode(self, rays: torch.Tensor, scores: torch.Tensor) -> tuple[torch.Tensor, ...]:
-        """The per-frame model on (N, V, J, 6), (N, V, J): answer, base, tokens, valid, views."""
+    def _encode(
+        self, rays: torch.Tensor, scores: torch.Tensor, floor: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, ...]:
+        """The per-frame model on (N, V, J, 6), (N, V, J) [, (N, 4)]: answer, base, tokens,
+        valid, views."""
         if self.fast_encoder is not None:  # in chunks: a long track stays within memory
+            rows = lambda i: None if floor is None else floor[i : i + 256].numpy()  # noqa: E731
             parts = [
-                self.fast_encoder(rays[i : i + 256].numpy(), scores[i : i + 256].numpy())
+                self.fast_encoder(rays[i : i + 256].numpy(), scores[i : i + 256].numpy(), rows(i))
                 for i in range(0, len(rays), 256)
             ]
             return tuple(
@@ -279,12 +303,16 @@ class TemporalRMPL(nn.Module):
             )
         grad = torch.is_grad_enabled() and not self.config.frozen_encoder
         with torch.set_grad_enabled(grad):
-            enc = self.frame_model.encode(rays, scores)
+            enc = self.frame_model.encode(rays, scores, floor=floor)
             answer = enc.base + self.frame_model.head(enc.tokens)
         return answer, enc.base, enc.tokens, enc.valid.to(rays.dtype), enc.views.to(rays.dtype)
 
     def forward(
-        self, rays: torch.Tensor, scores: torch.Tensor, times: torch.Tensor
+        self,
+        rays: torch.Tensor,
+        scores: torch.Tensor,
+        times: torch.Tensor,
+        floor: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """Lift a window of one person.
 
@@ -292,12 +320,15 @@ class TemporalRMPL(nn.Module):
             rays: (B, T, V, J, 6) origin (metres) + unit direction, z-up world.
             scores: (B, T, V, J) confidences; 0 (or a non-finite ray) = missing.
             times: (B, T) seconds, increasing (any origin).
+            floor: (B, 4) each window's floor plane ``n . X = h`` as ``[n, h]`` (``n`` unit,
+                pointing up), NaN rows = unknown; read by models with ``config.floor`` and
+                per-frame models that read it, ignored by the others.
 
         Returns:
             points (B, T, J, 3) world metres, and sigma (B, T, J) metres (see module doc).
             A window with no keypoint at all gives NaN.
         """
-        return self.forward_encoded(*self.encode_frames(rays, scores), times)
+        return self.forward_encoded(*self.encode_frames(rays, scores, floor), times, floor)
 
     def forward_encoded(
         self,
@@ -308,10 +339,11 @@ class TemporalRMPL(nn.Module):
         frame_ok: torch.Tensor,
         ray: torch.Tensor,
         times: torch.Tensor,
+        floor: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """The temporal stage on frames already encoded by :meth:`encode_frames` (so that a
-        long track is encoded once and read in overlapping windows). Returns as
-        :meth:`forward`."""
+        long track is encoded once and read in overlapping windows; the same ``floor``).
+        Returns as :meth:`forward`."""
         c = self.config
         B, T, J, _ = answer.shape
         okj = frame_ok[..., None].expand(B, T, J)
@@ -333,6 +365,8 @@ class TemporalRMPL(nn.Module):
         x = x + self.time_in(self._time_features(times))[:, :, None] + self.joint
         if self.body_in is not None:
             x = x + self.body_in(_bone_lengths(answer, flags[..., 0] > 0))[:, None, None]
+        if self.floor_in is not None:
+            x = x + self.floor_in(_floor_features(start, floor))
         for block in self.blocks:
             x = block(x, frame_ok)
         out = self.head(self.norm(x))
@@ -369,6 +403,16 @@ def _fused_start(answer, start, flags, okj, ray, times):
     nxt = torch.where(valid, -tt, -big).flip(1).cummax(1).values.flip(1).neg()
     gap = torch.minimum(tt - prev, nxt - tt).clamp(0, 2.0)
     return fused, torch.stack([gap, has.to(gap.dtype)], -1)
+
+
+def _floor_features(start: torch.Tensor, floor: torch.Tensor | None) -> torch.Tensor:
+    """Each starting point's height above the floor (metres, within +-3) and whether the
+    floor is known: (B, T, J, 3), (B, 4) or None -> (B, T, J, 2); zeros when unknown."""
+    B = start.shape[0]
+    fl = floor_parts(floor, B, start)
+    height = (start * fl.n[:, None, None]).sum(-1) - fl.h[:, None, None]
+    known = fl.known[:, None, None].to(start.dtype).expand_as(height)
+    return torch.stack([height.clamp(-3, 3) * known, known], -1)
 
 
 def _bone_lengths(points: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:

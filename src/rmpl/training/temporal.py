@@ -59,6 +59,14 @@ class TemporalTrainConfig:
         mhp_sequences: MHP sequence folders (``rmpl generate`` with ``sequence_frames``):
             renders seen by a real detector over time, mixed into training (their
             ``holdout`` subjects left out). mhp_weight: the share of batches drawn from them.
+        floor_rate, floor_noise_m, floor_tilt_deg: for a model that reads the floor
+            (``model.floor``): the sequence bank's segments that stand on a floor are levelled
+            to it (:meth:`SequenceBank.on_floor`; the others are left out), and this share of
+            training windows is given that floor with these errors (sd, metres / degrees).
+            Validation windows are given the exact floor. (MHP sequences carry no floor.)
+        init: a temporal checkpoint (shipped name or directory) whose temporal stage starts
+            this run; the per-frame model is ``frame_model``'s, and inputs the checkpoint
+            lacks (the floor's) start at zero, so the run starts at that model.
     """
 
     sequences: str = ""
@@ -82,6 +90,10 @@ class TemporalTrainConfig:
     noise: dict = field(default_factory=dict)
     mhp_sequences: tuple[str, ...] = ()
     mhp_weight: float = 0.5
+    floor_rate: float = 0.0
+    floor_noise_m: float = 0.02
+    floor_tilt_deg: float = 1.0
+    init: str = ""
 
     def __post_init__(self) -> None:
         checks = [
@@ -95,6 +107,9 @@ class TemporalTrainConfig:
             ("single_view_rate", 0 <= self.single_view_rate <= 1, "in [0, 1]"),
             ("threads", self.threads >= 1, ">= 1"),
             ("mhp_weight", 0 <= self.mhp_weight <= 1, "in [0, 1]"),
+            ("floor_rate", 0 <= self.floor_rate <= 1, "in [0, 1]"),
+            ("floor_noise_m", self.floor_noise_m >= 0, ">= 0"),
+            ("floor_tilt_deg", self.floor_tilt_deg >= 0, ">= 0"),
         ]
         for name, ok, expected in checks:
             if not ok:
@@ -128,6 +143,17 @@ class TemporalTrainConfig:
     def noise_config(self) -> TemporalNoise:
         return TemporalNoise.from_dict(self.noise)
 
+    @property
+    def reads_floor(self) -> bool:
+        return bool(self.model.get("floor", False))
+
+    def source_floor(self, train: bool = True) -> tuple[float, float, float]:
+        """``SequenceSource(floor=)``: training windows as configured, validation ones all
+        given the exact floor (when the model reads it)."""
+        if not self.reads_floor:
+            return (0.0, 0.0, 0.0)
+        return (self.floor_rate, self.floor_noise_m, self.floor_tilt_deg) if train else (1, 0, 0)
+
 
 def _load_bank(cfg: TemporalTrainConfig) -> tuple[SequenceBank, SequenceBank]:
     path = Path(cfg.sequences)
@@ -137,6 +163,12 @@ def _load_bank(cfg: TemporalTrainConfig) -> tuple[SequenceBank, SequenceBank]:
         bank = SequenceBank.load(path)
     else:
         raise InputError(cfg.sequences or "(empty)", "sequences", "a sequence bank or a folder")
+    if cfg.reads_floor:
+        from rmpl.data.sequences import FLOOR_CONTACT
+        from rmpl.skeleton import BY_COUNT
+
+        bank, kept = bank.on_floor(FLOOR_CONTACT[BY_COUNT[bank.poses.shape[1]]])
+        log.info("%s: %d of %d segments stand on a floor", path, kept.sum(), len(kept))
     train, val = bank.split(cfg.holdout)
     if len(train) == 0 or len(val) == 0:
         raise InputError(path, "holdout", "subjects that leave both training and validation data")
@@ -149,7 +181,31 @@ def build_temporal(cfg: TemporalTrainConfig) -> TemporalRMPL:
     from rmpl.training.loop import load_checkpoint
 
     frame, _ = load_checkpoint(PRETRAINED.get(cfg.frame_model, Path(cfg.frame_model)))
-    return TemporalRMPL(frame, cfg.model_config())
+    model = TemporalRMPL(frame, cfg.model_config())
+    if cfg.init:
+        _init_from(model, cfg.init)
+    return model
+
+
+def _init_from(model: TemporalRMPL, name_or_path: str) -> None:
+    """Copy the temporal stage of checkpoint ``name_or_path`` into ``model`` (see
+    ``TemporalTrainConfig.init``); every tensor but the new floor input must fit."""
+    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
+
+    path = Path(PRETRAINED_TEMPORAL.get(name_or_path, name_or_path))
+    source, _ = load_temporal(path)
+    stage = {k: v for k, v in source.state_dict().items() if not k.startswith("frame_model.")}
+    try:
+        missing, unexpected = model.load_state_dict(stage, strict=False)
+    except RuntimeError as e:  # a tensor of another shape
+        raise InputError(path, "init", "a temporal checkpoint of the same architecture",
+                         str(e).splitlines()[-1].strip()) from None  # fmt: skip
+    missing = [k for k in missing if not k.startswith(("frame_model.", "floor_in."))]
+    if missing or unexpected:
+        raise InputError(
+            path, "init", "a temporal checkpoint of the same architecture",
+            f"missing {missing}, unexpected {unexpected}",
+        )  # fmt: skip
 
 
 def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = None) -> None:
@@ -199,10 +255,16 @@ def _tensors(b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
     return tuple(torch.from_numpy(a) for a in (b.rays, b.scores, b.times, b.target))
 
 
+def _floor(b) -> torch.Tensor | None:
+    """The batch's floor rows (B, 4), or None (MHP sequences and floorless sources)."""
+    floor = getattr(b, "floor", None)
+    return None if floor is None else torch.from_numpy(floor)
+
+
 def loss_terms(model: TemporalRMPL, b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(position loss in metres, uncertainty NLL, per-joint errors (B, T, J)) on a batch."""
     rays, scores, times, target = _tensors(b)
-    points, sigma = model(rays, scores, times)
+    points, sigma = model(rays, scores, times, _floor(b))
     seen = (scores > 0).flatten(1).any(1)  # (B,) windows with nothing seen give NaN: skipped
     target = target[seen]
     known = torch.isfinite(target).all(-1)  # COCO-17 sets read as HALPE-26 lack 9 targets
@@ -217,7 +279,9 @@ def loss_terms(model: TemporalRMPL, b) -> tuple[torch.Tensor, torch.Tensor, torc
 
 def validation_sets(val: SequenceBank, cfg: TemporalTrainConfig, views=(1, 2, 3, 5)) -> dict:
     """Fixed windows of held-out motion per number of views (seeded, no keypoint removal)."""
-    src = SequenceSource(val, temporal=cfg.noise_config(), seed=12345)
+    src = SequenceSource(
+        val, temporal=cfg.noise_config(), seed=12345, floor=cfg.source_floor(train=False)
+    )
     T = cfg.model_config().window
     return {v: src.batch(cfg.val_size, T, v, train=False) for v in views}
 
@@ -230,8 +294,8 @@ def evaluate_windows(model: TemporalRMPL, sets: dict) -> dict[str, float]:
     out = {}
     for v, b in sets.items():
         rays, scores, times, target = _tensors(b)
-        points, sigma = model(rays, scores, times)
-        frame = model.encode_frames(rays, scores)[0]
+        points, sigma = model(rays, scores, times, _floor(b))
+        frame = model.encode_frames(rays, scores, _floor(b))[0]
         e = (points - target).norm(dim=-1).numpy()[..., list(KP_STAR)]
         ef = (frame - target).norm(dim=-1).numpy()[..., list(KP_STAR)]
         seen = (b.scores > 0).sum(2)[..., list(KP_STAR)]
@@ -256,7 +320,7 @@ def fit_sigma_scale(model: TemporalRMPL, sets: dict) -> float:
     ratios = []
     for b in sets.values():
         rays, scores, times, target = _tensors(b)
-        points, sigma = model(rays, scores, times)
+        points, sigma = model(rays, scores, times, _floor(b))
         raw = sigma / model.config.sigma_scale
         ratios.append(((points - target).norm(dim=-1) / raw).flatten().numpy())
     r = np.concatenate(ratios)
@@ -303,8 +367,9 @@ def assembled_windows(model: TemporalRMPL, b, assemble: str = "network"):
     from rmpl.inference_temporal import assemble_track
 
     rays, scores, times, _ = _tensors(b)
-    encoded = model.encode_frames(rays, scores)  # what model(...) does, kept for the frame answer
-    points, sigma = (x.numpy() for x in model.forward_encoded(*encoded, times))
+    floor = _floor(b)
+    encoded = model.encode_frames(rays, scores, floor)  # model(...), keeping the frame answer
+    points, sigma = (x.numpy() for x in model.forward_encoded(*encoded, times, floor))
     if assemble == "filtered":
         frame = encoded[0].numpy()
         views = (b.scores > 0).sum(2)
@@ -356,7 +421,9 @@ class _Run:
             self.model.use_onnx(cfg.threads)
         params = [p for p in self.model.parameters() if p.requires_grad]
         self.opt = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
-        self.src = SequenceSource(train_bank, temporal=cfg.noise_config(), seed=cfg.seed)
+        self.src = SequenceSource(
+            train_bank, temporal=cfg.noise_config(), seed=cfg.seed, floor=cfg.source_floor()
+        )
         self.rng_views = np.random.default_rng(cfg.seed + 1)
         # MHP sequences have their own generators, drawn from only when they are used, so
         # runs without them stay bit-identical to those made before they existed.
