@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.data.synthetic import floor_rows
 from rmpl.errors import InputError
 from rmpl.geometry.camera import project, rodrigues
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.data.synthetic import floor_rows
 from rmpl.io.atomic import atomic_path
 from rmpl.skeleton import COCO17, HALPE26
 from rmpl.synth.noise import (
