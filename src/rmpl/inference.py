@@ -109,6 +109,24 @@ def rotation_to_z(up: np.ndarray) -> np.ndarray:
     return rodrigues(axis / s * np.arctan2(s, c))
 
 
+def checked_floor(floor, rig: Rig):
+    """``floor`` (an :class:`rmpl.geometry.floor.Floor` or None) checked against the rig's
+    cameras (:func:`rmpl.geometry.floor.check_floor`); an InputError names the problem."""
+    if floor is None:
+        return None
+    from rmpl.geometry.floor import Floor, check_floor
+
+    if not isinstance(floor, Floor):
+        raise InputError(None, "floor", "an rmpl.geometry.floor.Floor or None",
+                         type(floor).__name__)  # fmt: skip
+    return check_floor(floor, rig.centers, field="floor")
+
+
+def floor_row(floor, Rc: np.ndarray) -> np.ndarray:
+    """The floor plane in the z-up frame ``X' = Rc X`` as a network's row ``[n, h]`` (4,)."""
+    return np.r_[Rc @ np.asarray(floor.normal, float), float(floor.height)].astype(np.float32)
+
+
 def checkpoint_reads_floor(name_or_path: str | Path) -> bool:
     """Whether a ``--model`` value (shipped name or checkpoint directory) names a per-frame
     model that takes the floor as an input (``RMPLConfig.floor``); False when unreadable."""
@@ -268,9 +286,8 @@ class Lifter:
         rays = rays.reshape(-1, V, J, 6).astype(np.float32)  # one row per frame
         s = np.where(ok, np.clip(sc, 0, 1), 0.0).reshape(-1, V, J).astype(np.float32)
         rows = None
-        if floor is not None and self.reads_floor:  # the plane in the z-up frame
-            row = np.r_[Rc @ np.asarray(floor.normal, float), float(floor.height)]
-            rows = np.broadcast_to(row.astype(np.float32), (len(rays), 4)).copy()
+        if floor is not None and self.reads_floor:
+            rows = np.broadcast_to(floor_row(floor, Rc), (len(rays), 4)).copy()
         out = self._batched(rays, s, batch_size, progress, rows)
         points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
         empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
@@ -306,13 +323,7 @@ class Lifter:
             raise InputError(None, "batch_size", "an integer >= 1", repr(batch_size))
         if batch_size < 1:
             raise InputError(None, "batch_size", "an integer >= 1", batch_size)
-        if floor is not None:
-            from rmpl.geometry.floor import Floor, check_floor
-
-            if not isinstance(floor, Floor):
-                raise InputError(None, "floor", "an rmpl.geometry.floor.Floor or None",
-                                 type(floor).__name__)  # fmt: skip
-            check_floor(floor, rig.centers, field="floor")
+        checked_floor(floor, rig)
         if up is not None:
             u = _floats(up, "up")
             if u.shape != (3,) or not np.isfinite(u).all() or not np.linalg.norm(u) > 0:

@@ -32,7 +32,14 @@ import torch
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
-from rmpl.inference import PRETRAINED, estimate_up, model_inputs, rotation_to_z
+from rmpl.inference import (
+    PRETRAINED,
+    checked_floor,
+    estimate_up,
+    floor_row,
+    model_inputs,
+    rotation_to_z,
+)
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
 from rmpl.skeleton import Skeleton, skeleton_for
 
@@ -279,6 +286,11 @@ class TemporalLifter:
     def window(self) -> int:
         return self.model.config.window
 
+    @property
+    def reads_floor(self) -> bool:
+        """Whether the model reads the floor (``lift_track(floor=)``; others ignore it)."""
+        return bool(self.model.config.floor or self.model.frame_model.config.floor)
+
     def _rays(self, kp, sc, rig: Rig, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Checked input -> rays (T, V, J, 6) and scores in the z-up frame, and that rotation."""
         J = self.num_joints
@@ -310,6 +322,7 @@ class TemporalLifter:
         up: np.ndarray | None = None,
         batch_windows: int = 32,
         joints: str | None = None,
+        floor=None,
     ) -> TrackResult:
         """Lift one person's track.
 
@@ -320,16 +333,24 @@ class TemporalLifter:
             up: world up direction (3,); estimated from the rig when None.
             batch_windows: windows per forward pass.
             joints: the keypoints' joint set, as for :meth:`rmpl.Lifter.lift`.
+            floor: the floor (:class:`rmpl.geometry.floor.Floor`) for a model that reads it
+                (:attr:`reads_floor`; its normal is then the up direction unless ``up`` is
+                given); other models ignore it. None = unknown.
 
         Returns:
             :class:`TrackResult`; frames before the first and after the last frame with a
             keypoint are NaN (the track has not started or has ended there).
         """
         kp, sc = model_inputs(keypoints, scores, self.skeleton, joints)
+        floor = checked_floor(floor, rig)
+        floor = floor if self.reads_floor else None
+        if up is None and floor is not None:
+            up = floor.n  # the floor's normal is the world's up
         rays, s, Rc = self._rays(kp, sc, rig, up)
         t = frame_times(len(kp), fps, times)
         t = t - t[0]  # in float64: a clock's origin (e.g. Unix time) would swamp float32
-        points, sigma, frame = self._windows(rays, s, t, batch_windows)
+        row = None if floor is None else torch.from_numpy(floor_row(floor, Rc))[None]
+        points, sigma, frame = self._windows(rays, s, t, batch_windows, row)
         if self.assemble == "filtered":
             points = assemble_track(points, frame, (s > 0).sum(1), t)
         points = points @ Rc  # back to the user's world
@@ -340,10 +361,11 @@ class TemporalLifter:
         points[outside], sigma[outside] = np.nan, np.nan
         return TrackResult(points, sigma, (s > 0).sum(1), self.calibration)
 
-    def _windows(self, rays, s, t: np.ndarray, batch: int):
+    def _windows(self, rays, s, t: np.ndarray, batch: int, floor: torch.Tensor | None = None):
         """Overlapping windows, ``batch`` at a time: each group's frames are encoded by the
         per-frame model, read by the temporal stage, and stitched with triangular weights
-        (memory stays that of one group, whatever the track's length).
+        (memory stays that of one group, whatever the track's length). ``floor``: (1, 4) the
+        track's floor row in the z-up frame, or None.
 
         Returns:
             the network's points (T, J, 3) and sigma (T, J), and the per-frame model's
@@ -361,11 +383,12 @@ class TemporalLifter:
             chunk = starts[i : i + batch]
             a0, a1 = chunk[0], chunk[-1] + W  # the frames this group reads
             r, sc = torch.from_numpy(rays[a0:a1])[None], torch.from_numpy(s[a0:a1])[None]
-            enc = self.model.encode_frames(r, sc)
+            enc = self.model.encode_frames(r, sc, floor)
             frame[a0:a1] = enc[0][0].numpy()
             parts = [torch.stack([e[0, a - a0 : a - a0 + W] for a in chunk]) for e in enc]
             tt = torch.stack([times[a : a + W] for a in chunk])
-            p, sg = self.model.forward_encoded(*parts, tt)
+            rows = None if floor is None else floor.expand(len(chunk), 4)
+            p, sg = self.model.forward_encoded(*parts, tt, rows)
             for k, a in enumerate(chunk):
                 ok = np.isfinite(p[k].numpy()).all((-1, -2))  # (W,)
                 w = tri * ok
