@@ -128,11 +128,15 @@ def floor_row(floor, Rc: np.ndarray) -> np.ndarray:
 
 
 def checkpoint_reads_floor(name_or_path: str | Path) -> bool:
-    """Whether a ``--model`` value (shipped name or checkpoint directory) names a per-frame
-    model that takes the floor as an input (``RMPLConfig.floor``); False when unreadable."""
+    """Whether a ``--model`` value (shipped name or checkpoint directory) names a model whose
+    per-frame model takes the floor as an input (``RMPLConfig.floor``; a temporal model's
+    too); False when unreadable."""
     import json
 
-    path = Path(PRETRAINED.get(str(name_or_path), name_or_path))
+    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
+
+    name = str(name_or_path)
+    path = Path(PRETRAINED.get(name) or PRETRAINED_TEMPORAL.get(name) or name_or_path)
     try:
         meta = json.loads((path / "config.json").read_text())
     except (OSError, ValueError):

@@ -110,7 +110,9 @@ class MonocularMethod:
 
     Args:
         cues: the depth cues, e.g. "floor+size" ("" = all).
-        model: the per-frame model, a shipped name or a checkpoint directory.
+        model: the per-frame model, a shipped name or a checkpoint directory; or a temporal
+            model that reads the floor, whose per-frame model lifts and tracks each stretch
+            before it lifts each one-view track as a whole (as ``rmpl run`` with one camera).
 
     Attributes:
         floor: the :class:`rmpl.geometry.floor.Floor`, or None: the calibration convention
@@ -120,6 +122,7 @@ class MonocularMethod:
 
     def __init__(self, cues: str = "", model: str = "default") -> None:
         from rmpl.inference import Lifter
+        from rmpl.inference_temporal import is_temporal_checkpoint
         from rmpl.pipeline.monocular import MonocularConfig
 
         cues, _, named = cues.partition("@")
@@ -129,7 +132,14 @@ class MonocularMethod:
             MonocularConfig.from_cues(cues)  # a bad spec fails here, not at the first frame
         self.floor = None
         self.floor_rule = "convention"
-        self._lifter = Lifter.from_pretrained(self._model)
+        self._temporal = None
+        if is_temporal_checkpoint(self._model):
+            from rmpl.inference_temporal import TemporalLifter
+
+            self._temporal = TemporalLifter.from_pretrained(self._model)
+            self._lifter = Lifter(self._temporal.model.frame_model, {})
+        else:
+            self._lifter = Lifter.from_pretrained(self._model)
 
     def config_for(self, floor_known: bool) -> MonocularConfig:
         """The cues given, or ``rmpl run``'s for the model with or without a floor
@@ -212,7 +222,7 @@ class MonocularMethod:
             if rows.any():
                 p, t = lift_stretch(
                     kp[rows], sc[rows], frame[rows] - a, b - a, rig, fps / step, floor,
-                    self.config_for(floor is not None), lift=fn,
+                    self.config_for(floor is not None), lift=fn, temporal=self._temporal,
                 )  # fmt: skip
                 preds.append(p)
                 at.append(t + a)

@@ -21,6 +21,11 @@ projects like ``X``: a one-parameter family per frame. Three cues choose ``s``
   depth changes smoothly, so the per-frame log depths are smoothed along the track
   (:func:`track_log_depth`) before the usual filters (:func:`rmpl.pipeline.runner.smooth`).
 
+A temporal model that reads the floor (:class:`rmpl.TemporalLifter`, ``reads_floor``) takes
+the place of the cues: the per-frame model finds and follows the people, and each track is
+lifted again as a whole, its floor given (:func:`temporal_tracks`); its error radius is the
+temporal model's.
+
 Every per-frame estimate is a log-scale with a standard deviation from a stated noise model
 (:class:`MonocularConfig`); cues combine by inverse variance. The uncertainty written to
 :attr:`rmpl.io.poses.Poses3D.uncertainty` is the 50% radius of the depth error along each
@@ -596,7 +601,8 @@ class MonocularResult:
         points: (T, P, J, 3) metres, J the lifter's joints. sigma: (T, P) log-depth
             standard deviation. views: (T, P, J) view counts. ids: (P,). tracks: per
             track, its :class:`TrackDepth` (time cue) or None. skeleton: the name of the
-            joint set of ``points``.
+            joint set of ``points``. rows: (T, P) with the time cue, the row of the input
+            people (``kp``) each track is in each frame, -1 none; else None.
     """
 
     points: np.ndarray
@@ -605,6 +611,7 @@ class MonocularResult:
     ids: np.ndarray
     tracks: list
     skeleton: str = "coco17"
+    rows: np.ndarray | None = None
 
     def radius(self, center: np.ndarray) -> np.ndarray:
         """The 50% radius of the depth error along each joint's ray, metres (T, P, J)."""
@@ -688,10 +695,13 @@ def monocular_people(
     nv = np.zeros((num_frames, P, J), int)
     times = np.arange(num_frames) / (fps or 25.0)
     offsets = np.r_[0, np.cumsum([len(r) for r in rows])]
+    members = np.full((num_frames, P), -1)
+    order = np.concatenate(rows) if rows else np.zeros(0, int)  # pts row -> kp row
     depths = []
     for p in range(P):
         t_idx = np.flatnonzero(index[:, p] >= 0)
         m = offsets[t_idx] + index[t_idx, p]  # rows of the track's people
+        members[t_idx, p] = order[m]
         sub = FrameCues(cues.floor[m], cues.floor_sd[m], cues.proxy[m], cues.upright[m])
         depth = track_log_depth(pts[m], sub, center, floor, times[t_idx], config)
         root = np.nanmean(pts[m][:, _HIPS], axis=1)
@@ -700,7 +710,7 @@ def monocular_people(
         sigma[t_idx, p] = depth.sd
         nv[t_idx, p] = np.concatenate(views)[m]
         depths.append(depth)
-    return MonocularResult(out, sigma, nv, ids, depths, skeleton)
+    return MonocularResult(out, sigma, nv, ids, depths, skeleton, members)
 
 
 def _track_index(points: list[np.ndarray], cfg):
@@ -725,8 +735,12 @@ def _by_frame(points: list, sds: list, views: list, J: int, skeleton: str) -> Mo
     return MonocularResult(out, sigma, nv, np.arange(P), [None] * P, skeleton)
 
 
-def lift_stretch(kp, sc, frame, num_frames, rig, fps, floor, config, run_config=None, lift=None):
-    """:func:`monocular_people`, then (with "time") the runner's filters, as predictions.
+def lift_stretch(
+    kp, sc, frame, num_frames, rig, fps, floor, config, run_config=None, lift=None, temporal=None
+):
+    """:func:`monocular_people`, then (with "time") the runner's filters, as predictions; with
+    a ``temporal`` lifter (:class:`rmpl.inference_temporal.TemporalLifter`) and "time", each
+    track lifted again as a whole by it instead (:func:`temporal_tracks`).
 
     Returns:
         predictions (M', J, 3) and their frame indices (M',), as a sequence method gives
@@ -737,7 +751,9 @@ def lift_stretch(kp, sc, frame, num_frames, rig, fps, floor, config, run_config=
     cfg = run_config or RunConfig()
     res = monocular_people(kp, sc, frame, num_frames, rig, fps, floor, config, cfg, lift)
     x = res.points
-    if "time" in config.cues and len(x) and fps:
+    if temporal is not None and res.rows is not None and len(x) and fps:
+        x, _ = temporal_tracks(res.rows, kp, sc, rig, fps, floor, temporal, _up(rig, floor, None))
+    elif "time" in config.cues and len(x) and fps:
         x, _ = smooth(x, fps, replace(cfg, cutoff=min(cfg.cutoff, 0.45 * fps)))
     t_idx, p_idx = np.nonzero(np.isfinite(x).all(-1).any(-1))
     return x[t_idx, p_idx], t_idx
@@ -764,19 +780,27 @@ def lift_single_view(
         frames, fps: as :func:`rmpl.pipeline.runner.run`.
         floor: the floor (:mod:`rmpl.geometry.floor`), or None: the size prior (and time)
             alone.
-        config: :class:`rmpl.pipeline.runner.RunConfig` (method "rmpl", a per-frame model).
+        config: :class:`rmpl.pipeline.runner.RunConfig` (method "rmpl", a per-frame model,
+            or a temporal one that reads the floor: see :func:`temporal_tracks`).
         monocular: the cues (default: :meth:`MonocularConfig.for_model`).
-        temporal: apply the runner's filters (:func:`rmpl.pipeline.runner.smooth`).
+        temporal: apply the runner's filters (:func:`rmpl.pipeline.runner.smooth`); with a
+            temporal model, lift whole tracks with it (False: its per-frame model alone).
         joints: the 2D's joint set (None: by its joint count).
 
     Returns:
         :class:`Poses3D` in the lifter's joint set, per-joint uncertainty = the 50% radius
-        of the depth error along the ray (metres).
+        of the depth error along the ray (metres), or with a temporal model its own 50%
+        error radius.
     """
     from rmpl.inference import checkpoint_reads_floor
+    from rmpl.inference_temporal import is_temporal_checkpoint
     from rmpl.pipeline.runner import RunConfig, drop_far, smooth
 
     cfg = config or RunConfig()
+    if is_temporal_checkpoint(cfg.model):
+        return _single_view_temporal(
+            keypoints, scores, rig, frames, fps, floor, cfg, temporal, joints
+        )
     mono = monocular or MonocularConfig.for_model(cfg.model, floor_known=floor is not None)
     reads_floor = checkpoint_reads_floor(cfg.model)
     guess = 0.0  # log-depth error of a guessed floor, added to the uncertainty only
@@ -825,6 +849,104 @@ def lift_single_view(
         person_ids=np.asarray(res.ids),
         uncertainty=radius,
     )
+
+
+def _single_view_temporal(keypoints, scores, rig, frames, fps, floor, cfg, whole, joints):
+    """:func:`lift_single_view` with a temporal model (``cfg.model``): its per-frame model
+    finds and follows the people (the time cue), then :func:`temporal_tracks` lifts each
+    track as a whole (``whole``; else the per-frame model's answers are kept, their depth
+    smoothed along each track; the cues are not used)."""
+    from rmpl.inference import Lifter
+    from rmpl.inference_temporal import TemporalLifter
+    from rmpl.pipeline.runner import drop_far
+
+    if len(rig) != 1:
+        raise ValueError(f"lift_single_view takes one camera, got {len(rig)}")
+    if whole and fps is None:
+        raise InputError(None, "fps", "the frame rate (--fps) to lift whole tracks", "none")
+    temporal = TemporalLifter.from_pretrained(cfg.model)
+    if not temporal.reads_floor:
+        raise InputError(cfg.model, "model", "a temporal model that reads the floor for one "
+                         "camera (or a per-frame model)", "one that does not")  # fmt: skip
+    if floor is None:
+        log.warning("one camera, a temporal model and no floor: nothing but body size fixes "
+                    "the depth (expect errors of 0.5 m or more); give --floor")  # fmt: skip
+    frame_lifter = Lifter(temporal.model.frame_model, {})
+    up = _up(rig, floor, cfg.up)
+    name = BY_COUNT.get(keypoints.shape[-2]) if joints is None else joints
+
+    def lift(kp, sc, rig_):
+        r = frame_lifter.lift(kp, sc, rig_, up=up, joints=name, floor=floor)
+        return r.points, r.num_views
+
+    lift.skeleton = frame_lifter.skeleton.name
+    T = keypoints.shape[0]
+    keypoints, scores = drop_far(keypoints, scores, rig)
+    present = (scores > 0).any(-1)[:, 0]  # (T, P)
+    t_idx, p_idx = np.nonzero(present)
+    kp, sc = keypoints[t_idx, :, p_idx], scores[t_idx, :, p_idx]  # (M, 1, J_2d, ...)
+    mono = MonocularConfig.from_cues("time", lifter_sd=FLOOR_MODEL_LIFTER_SD)
+    res = monocular_people(kp, sc, t_idx, T, rig, fps, floor, mono, cfg, lift, joints)
+    detected = (res.rows >= 0)[..., None]  # (T, P, 1) the view sees the track's person
+    radius = None
+    if whole:
+        points, radius = temporal_tracks(res.rows, kp, sc, rig, fps, floor, temporal, up, name)
+    else:
+        points = res.points
+    ok = np.isfinite(points).all(-1)
+    filled = ok & ~detected
+    flags = np.where(filled, int(JointSource.INTERPOLATED), np.where(ok, 1, 0))
+    points = np.where(ok[..., None], points, np.nan)
+    where = floor.describe() if floor is not None else "no floor"
+    how = "whole tracks lifted by the temporal model" if whole else "its per-frame model"
+    log.info("one camera: %s %s, which reads the floor (%s) and learnt body sizes; depth "
+             "comes from them, not from triangulation", how, cfg.model, where)  # fmt: skip
+    r = radius[np.isfinite(radius)] * 1000 if radius is not None else np.zeros(0)
+    if r.size:
+        log.info("predicted error radius (50%%): median %.0f mm, 90th percentile %.0f mm "
+                 "(per joint in poses.json/npz 'uncertainty')", np.median(r),
+                 np.percentile(r, 90))  # fmt: skip
+    return Poses3D(
+        points=points,
+        flags=flags.astype(np.uint8),
+        num_views=(ok & detected).astype(np.int32),
+        skeleton=res.skeleton,
+        frames=np.arange(T) if frames is None else np.asarray(frames),
+        fps=fps,
+        person_ids=np.asarray(res.ids),
+        uncertainty=radius,
+    )
+
+
+def temporal_tracks(rows, kp, sc, rig: Rig, fps, floor, lifter, up=None, joints=None):
+    """Lift each one-view track as a whole with a temporal lifter.
+
+    Args:
+        rows: (T, P) the row of ``kp`` each track is in each frame, -1 none
+            (:attr:`MonocularResult.rows`).
+        kp, sc: the 2D people (M, 1, J_2d, 2), (M, 1, J_2d).
+        rig: one camera. fps: frames per second. floor: the floor or None.
+        lifter: a :class:`rmpl.inference_temporal.TemporalLifter`. up: the world's up.
+        joints: the 2D's joint set.
+
+    Returns:
+        points (T, P, J, 3) metres and their 50% error radius (T, P, J) metres; NaN before a
+        track's first and after its last frame. Frames inside a track where the view misses
+        the person are the network's fill.
+    """
+    T, P = rows.shape
+    J = lifter.num_joints
+    points, radius = np.full((T, P, J, 3), np.nan), np.full((T, P, J), np.nan)
+    for p in range(P):
+        have = rows[:, p] >= 0
+        if not have.any():
+            continue
+        tk = np.full((T, *kp.shape[1:]), np.nan)
+        ts = np.zeros((T, *sc.shape[1:]))
+        tk[have], ts[have] = kp[rows[have, p]], sc[rows[have, p]]
+        track = lifter.lift_track(tk, ts, rig, fps=fps, up=up, joints=joints, floor=floor)
+        points[:, p], radius[:, p] = track.points, track.radius(0.5)
+    return points, radius
 
 
 def _log_summary(
