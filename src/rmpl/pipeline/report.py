@@ -24,6 +24,8 @@ What is measured (the report states the same):
 - **Per person**: frames present, frames and joints whose gaps were filled by
   interpolation (flag INTERPOLATED), the estimated standing height
   (:func:`rmpl.anthropometry.estimate_height`), and the view check's verdict.
+- **Floor**: the floor plane the lifter was given (the user's or one estimated from the
+  run, :func:`rmpl.pipeline.runner.run_with_floor`), or none; when the caller says.
 
 Joint sets: the rows are the 3D's joints (``Poses3D.skeleton``, COCO-17 or HALPE-26). The
 2D is placed into that joint set by name (:func:`rmpl.skeleton.embed`): a joint the 2D lacks
@@ -78,6 +80,8 @@ class RunReport:
         one_camera: with one camera, where depth came from and how uncertain it is
             (``statement``, ``uncertainty_50_mm_median``, ``uncertainty_50_mm_p90``); None
             with more cameras.
+        floor: the floor the lifter was given (:func:`floor_entry`), or None when not
+            recorded.
     """
 
     poses: Poses3D
@@ -89,6 +93,7 @@ class RunReport:
     disagreements: list[dict]
     notes: list[str] = field(default_factory=list)
     one_camera: dict | None = None
+    floor: dict | None = None
 
     @property
     def exit_code(self) -> int:
@@ -129,6 +134,7 @@ class RunReport:
             "disagreements": self.disagreements,
             "notes": self.notes,
             "one_camera": self.one_camera,
+            "floor": self.floor,
         }  # fmt: skip
 
     def to_markdown(self) -> str:
@@ -201,7 +207,37 @@ def _stats(x: np.ndarray) -> tuple[float | None, float | None]:
     return round(float(np.median(x)), 2), round(float(np.percentile(x, 90)), 2)
 
 
-def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None) -> RunReport:
+#: :func:`build_report`'s ``floor`` when the caller does not say which floor the lifter read.
+NOT_RECORDED = "not recorded"
+
+
+def floor_entry(floor) -> dict | None:
+    """The report's ``floor`` entry: ``given``, ``description``
+    (:meth:`rmpl.geometry.floor.Floor.describe`, or "none"), and for a floor its ``normal``,
+    ``height_m``, ``source`` and ``spread_m`` (the fitted points' spread, None when given).
+
+    Args:
+        floor: the :class:`rmpl.geometry.floor.Floor` the lifter was given, None (none), or
+            :data:`NOT_RECORDED` (the entry is then None).
+    """
+    if isinstance(floor, str) and floor == NOT_RECORDED:
+        return None
+    if floor is None:
+        return {"given": False, "description": "none"}
+    spread = float(floor.spread)
+    return {
+        "given": True,
+        "description": floor.describe(),
+        "normal": [round(float(v), 6) for v in floor.normal],
+        "height_m": round(float(floor.height), 6),
+        "source": floor.source,
+        "spread_m": round(spread, 4) if np.isfinite(spread) else None,
+    }
+
+
+def build_report(
+    poses: Poses3D, inputs, config: ConsistencyConfig | None = None, floor=NOT_RECORDED
+) -> RunReport:
     """Check the views and tabulate the diagnostics of a run.
 
     Args:
@@ -211,6 +247,9 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
             ``inputs.skeleton`` when it has one, else COCO-17 for 17 joints, HALPE-26 for
             26, the poses' own for as many joints as the poses).
         config: the view check's settings.
+        floor: the floor the lifter was given (an :class:`rmpl.geometry.floor.Floor`, None
+            for none, as :func:`rmpl.pipeline.runner.run_with_floor` returns it), or
+            :data:`NOT_RECORDED`: the report then says nothing of the floor.
 
     Returns:
         :class:`RunReport`.
@@ -269,7 +308,7 @@ def build_report(poses: Poses3D, inputs, config: ConsistencyConfig | None = None
             )
     return RunReport(
         poses, consistency, height_notes, people, cameras, joints, disagreements, notes,
-        _one_camera(poses) if len(rig) == 1 else None,
+        _one_camera(poses) if len(rig) == 1 else None, floor_entry(floor),
     )  # fmt: skip
 
 
@@ -493,6 +532,10 @@ def _markdown(r: RunReport) -> str:
         f"{'person' if p.num_people == 1 else 'people'}, "
         f"{len(p.camera_names or ())} cameras ({', '.join(p.camera_names or ())}).",
         "",
+    ]
+    if r.floor is not None:
+        md += [f"Floor given to the lifter: {r.floor['description']}.", ""]
+    md += [
         "## Verdict",
         "",
     ]

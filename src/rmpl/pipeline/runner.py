@@ -16,6 +16,11 @@ tracker's index) and how many of that person's keypoints the estimator left out
 (``views_excluded``), so that the 3D can be checked against each view's 2D afterwards
 (:mod:`rmpl.pipeline.consistency`).
 
+A lifter that reads the floor (:attr:`rmpl.Lifter.reads_floor`, or the temporal one's) is
+given one: the user's, or by default one estimated once per run from the run's own people
+(:func:`estimate_floor`: triangulated, then the lowest ankles); :func:`run_with_floor` also
+returns the floor the lifter was given, for the report.
+
 Shape glossary: ``T`` frames, ``V`` views, ``P`` people, ``N`` people in one frame,
 ``J`` joints.
 """
@@ -34,12 +39,23 @@ from rmpl.io.poses import JointSource, Poses3D
 from rmpl.pipeline.association import Association, AssociationConfig, associate
 from rmpl.skeleton import BY_COUNT
 
-__all__ = ["RunConfig", "associate_frames", "estimate", "track_people", "smooth", "run"]
+__all__ = [
+    "RunConfig",
+    "associate_frames",
+    "estimate",
+    "estimate_floor",
+    "track_people",
+    "smooth",
+    "run",
+    "run_with_floor",
+]
 
 log = logging.getLogger(__name__)
 
 METHODS = ("rmpl", "triangulate", "robust")
 FILTERS = ("butterworth", "one-euro", "none")
+#: ``run(floor=ESTIMATE)``: the floor estimated from the run's own multi-view people.
+ESTIMATE = "estimate"
 
 
 @dataclass(frozen=True)
@@ -185,12 +201,15 @@ def input_skeleton(num_joints: int, joints: str | None = None) -> str:
 _COCO_JOINTS = 17  # COCO-17 is the first 17 joints of both output sets
 
 
-def _estimator(config: RunConfig, used: bool = False, joints: str | None = None, floor=None):
+def _estimator(
+    config: RunConfig, used: bool = False, joints: str | None = None, floor=None, lifter=None
+):
     """``fn(kp, sc, rig) -> (points, num_views)``, or with ``used`` ``(points, num_views,
     views used (N, V, J) bool)``, J the output's joints.
 
     ``joints`` names the 2D's joint set (None: by its joint count, :func:`input_skeleton`).
     ``floor`` (:class:`rmpl.geometry.floor.Floor`) goes to a lifter that reads it.
+    ``lifter``: the :class:`rmpl.Lifter` of ``config.model`` when already loaded.
     The function's attribute ``skeleton`` names the output's joint set when known before
     the first call: the lifter's own (:attr:`rmpl.Lifter.skeleton`); triangulation keeps
     the 2D's (``fn.skeleton`` is then ``joints``, possibly None).
@@ -204,7 +223,7 @@ def _estimator(config: RunConfig, used: bool = False, joints: str | None = None,
     if config.method == "rmpl":
         from rmpl.inference import Lifter
 
-        lifter = Lifter.from_pretrained(config.model)
+        lifter = lifter or Lifter.from_pretrained(config.model)
         up = None if config.up is None else np.asarray(config.up, float)
         skeleton = lifter.skeleton
 
@@ -251,13 +270,15 @@ def estimate(
     fn=None,
     used: bool = False,
     joints: str | None = None,
+    floor=None,
 ) -> tuple[list[np.ndarray], ...]:
     """3D joints of every associated person, batched over frames.
 
     ``fn(kp, sc, rig) -> (points, num_views)`` replaces the estimator ``config`` names
     (with ``used``, ``fn`` must also return the views used, (N, V, J) bool). ``joints``
     names the 2D's joint set (None: by its joint count); the lifter answers in its own
-    (:attr:`rmpl.Lifter.skeleton`).
+    (:attr:`rmpl.Lifter.skeleton`). ``floor`` (:class:`rmpl.geometry.floor.Floor`) goes to
+    a lifter that reads it (without ``fn``).
 
     Returns:
         Per frame: points (N, J, 3) metres and the number of views per joint (N, J); with
@@ -265,7 +286,7 @@ def estimate(
     """
     from tqdm import tqdm
 
-    fn = fn or _estimator(config, used=used, joints=joints)
+    fn = fn or _estimator(config, used=used, joints=joints, floor=floor)
     counts = [len(a) for a in people]
     if sum(counts) == 0:
         J = people[0].keypoints.shape[-2] if people else 17
@@ -286,6 +307,79 @@ def estimate(
         mask = np.concatenate([r[2] for r in answers]).astype(bool)  # (all people, V, J)
         return np.split(pts, split), np.split(nv, split), np.split(mask, split)
     return np.split(pts, split), np.split(nv, split)
+
+
+def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = None):
+    """The floor under a run's own people: each associated person of each frame
+    triangulated (DLT, the joints two or more views see), then
+    :func:`rmpl.pipeline.monocular.floor_from_poses` (the lowest ankle of every pose that
+    may touch the floor).
+
+    Args:
+        people: per frame, the :class:`Association` of :func:`associate_frames`; their
+            first 17 joints are COCO-17's (COCO-17 or HALPE-26 2D).
+        up: the world up direction (3,); None: :func:`rmpl.inference.estimate_up` of the rig.
+
+    Returns:
+        The :class:`rmpl.geometry.floor.Floor`; its ``source`` says how it was found.
+
+    Raises:
+        InputError: fewer than 10 usable poses (e.g. one camera, or few frames).
+    """
+    from dataclasses import replace
+
+    from rmpl.geometry.triangulate import triangulate
+    from rmpl.inference import estimate_up
+    from rmpl.pipeline.monocular import floor_from_poses
+
+    found = [a for a in people if len(a)]
+    if not found:
+        raise InputError(None, "floor", "people seen by 2+ cameras to estimate it", "none")
+    kp = np.concatenate([a.keypoints[..., :_COCO_JOINTS, :] for a in found])  # (N, V, 17, 2)
+    sc = np.concatenate([a.scores[..., :_COCO_JOINTS] for a in found])
+    points = triangulate(kp, sc, rig).points  # (N, 17, 3), NaN where < 2 views
+    floor = floor_from_poses(points, estimate_up(rig) if up is None else up)
+    return replace(floor, source=f"{floor.source}; triangulated from the run's {len(rig)} cameras")
+
+
+def _run_floor(floor, people: list[Association], rig: Rig, cfg: RunConfig, reads: bool):
+    """The floor the lifter is given: None when it does not read the floor (or ``floor`` is
+    None); the checked ``floor``; or with :data:`ESTIMATE`, :func:`estimate_floor` (None,
+    with a log line, when too few poses allow it). Says which in one log line."""
+    if not reads:
+        unused = "" if floor is None or isinstance(floor, str) else "; the given one is not used"
+        log.info("floor: none (the %s does not read the floor%s)", _lifter_name(cfg), unused)
+        return None
+    if floor is None:
+        log.info("floor: none given to the lifter (floor=None)")
+        return None
+    if isinstance(floor, str):  # ESTIMATE (checked by _checked_floor_spec)
+        up = None if cfg.up is None else np.asarray(cfg.up, float)
+        try:
+            floor = estimate_floor(people, rig, up)
+        except InputError as e:
+            log.info(
+                "floor: not estimated (%s; got %s): the lifter goes without", e.expected, e.got
+            )
+            return None
+    log.info("floor given to the lifter: %s", floor.describe())
+    return floor
+
+
+def _lifter_name(cfg: RunConfig) -> str:
+    return f"model {cfg.model}" if cfg.method == "rmpl" else f"method {cfg.method}"
+
+
+def _checked_floor_spec(floor, rig: Rig):
+    """``run``'s ``floor``: :data:`ESTIMATE`, None, or a floor checked against the rig."""
+    if floor is None or (isinstance(floor, str) and floor == ESTIMATE):
+        return floor
+    if isinstance(floor, str):
+        raise InputError(None, "floor", f"an rmpl.geometry.floor.Floor, {ESTIMATE!r} or None",
+                         repr(floor))  # fmt: skip
+    from rmpl.inference import checked_floor
+
+    return checked_floor(floor, rig)
 
 
 def _num_joints(skeleton: str | None, default: int) -> int:
@@ -429,12 +523,15 @@ def lift_people(
     fps: float | None,
     cfg: RunConfig,
     joints: str | None = None,
+    floor=None,
 ):
     """Track the associated people with per-frame estimates, then lift each track with the
     temporal model ``cfg.model``.
 
     Args:
         joints: the 2D's joint set (None: by its joint count, :func:`input_skeleton`).
+        floor: the floor (:class:`rmpl.geometry.floor.Floor`) for a model that reads it,
+            :data:`ESTIMATE` (:func:`estimate_floor`, when the model reads it) or None.
 
     Returns:
         tracks (T, P, J, 3), uncertainty (T, P, J) (the 50% error radius, metres), views
@@ -442,12 +539,16 @@ def lift_people(
         track had no 2D. J is the model's (:attr:`TemporalLifter.skeleton
         <rmpl.inference_temporal.TemporalLifter.skeleton>`).
     """
-    return _lift_people(people, rig, fps, cfg, joints)[:5]
+    floor = _checked_floor_spec(floor, rig)
+    return _lift_people(people, rig, fps, cfg, joints, floor)[:5]
 
 
-def _lift_people(people, rig: Rig, fps: float | None, cfg: RunConfig, joints: str | None):
-    """:func:`lift_people` plus the index (T, P) of each track's person per frame and the
-    model's joint set."""
+def _lift_people(
+    people, rig: Rig, fps: float | None, cfg: RunConfig, joints: str | None, floor=None
+):
+    """:func:`lift_people` plus the index (T, P) of each track's person per frame, the
+    model's joint set and the floor it was given (``floor`` checked by
+    :func:`_checked_floor_spec`)."""
     from rmpl.inference import Lifter
     from rmpl.inference_temporal import TemporalLifter
     from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
@@ -457,9 +558,11 @@ def _lift_people(people, rig: Rig, fps: float | None, cfg: RunConfig, joints: st
     lifter = TemporalLifter.from_pretrained(cfg.model)
     frame = Lifter(lifter.model.frame_model)
     up = None if cfg.up is None else np.asarray(cfg.up, float)
+    floor = _run_floor(floor, people, rig, cfg, lifter.reads_floor)
 
     def fn(kp, sc, r):
-        x = frame.lift(kp, sc, r, up=up, joints=input_skeleton(kp.shape[-2], joints))
+        name = input_skeleton(kp.shape[-2], joints)
+        x = frame.lift(kp, sc, r, up=up, joints=name, floor=floor)
         return x.points, x.num_views
 
     log.info(
@@ -475,7 +578,7 @@ def _lift_people(people, rig: Rig, fps: float | None, cfg: RunConfig, joints: st
         index = np.zeros((T, 0), int)
         return (
             np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0, index,
-            name,
+            name, floor,
         )  # fmt: skip
     if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
@@ -483,10 +586,12 @@ def _lift_people(people, rig: Rig, fps: float | None, cfg: RunConfig, joints: st
         index, ids = track_index(pts, cfg)
     kp, sc = tracks_2d(people, index)
     named = input_skeleton(kp.shape[-2], joints)
-    tracks, radius, views = lift_tracks(kp, sc, rig, lifter, fps, cfg.max_gap, up, named)
+    tracks, radius, views = lift_tracks(
+        kp, sc, rig, lifter, fps, cfg.max_gap, up, named, floor=floor
+    )
     filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
     interpolated = filled & np.isfinite(tracks).all(-1)
-    return tracks, radius, views, ids, interpolated, index, name
+    return tracks, radius, views, ids, interpolated, index, name, floor
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:
@@ -523,6 +628,7 @@ def run(
     temporal: bool = True,
     progress: bool = True,
     joints: str | None = None,
+    floor=ESTIMATE,
 ) -> Poses3D:
     """The whole chain on 2D input (T, V, P, J, 2) + scores (T, V, P, J).
 
@@ -538,13 +644,49 @@ def run(
         temporal: apply :func:`smooth` (outliers, gaps, filter); False keeps raw estimates.
         joints: the 2D's joint set (a name in :data:`rmpl.skeleton.SKELETONS`); None: by
             its joint count, COCO-17 for 17 and HALPE-26 for 26.
+        floor: for a lifter that reads the floor (per frame :attr:`rmpl.Lifter.reads_floor`,
+            whole tracks :attr:`TemporalLifter.reads_floor
+            <rmpl.inference_temporal.TemporalLifter.reads_floor>`): an
+            :class:`rmpl.geometry.floor.Floor` (checked against the cameras), :data:`ESTIMATE`
+            (``"estimate"``, the default: :func:`estimate_floor` on the run's people, once;
+            with too few usable poses, none, said in the log) or None (no floor). Other
+            lifters and triangulation are given none, and nothing is estimated for them.
 
     Returns:
         :class:`Poses3D` with per-joint source flags and view counts, and per view the 2D
         person each track used (``membership``) and the keypoints left out
-        (``views_excluded``).
+        (``views_excluded``). :func:`run_with_floor` also returns the floor used.
+
+    Raises:
+        InputError: a ``floor`` that is not a plane below the cameras, nor "estimate" or
+            None; a Butterworth cut-off at or above the Nyquist frequency.
+    """
+    return run_with_floor(
+        keypoints, scores, rig, frames, fps, config, temporal, progress, joints, floor
+    )[0]
+
+
+def run_with_floor(
+    keypoints: np.ndarray,
+    scores: np.ndarray,
+    rig: Rig,
+    frames: np.ndarray | None = None,
+    fps: float | None = None,
+    config: RunConfig | None = None,
+    temporal: bool = True,
+    progress: bool = True,
+    joints: str | None = None,
+    floor=ESTIMATE,
+):
+    """:func:`run`, and the floor the lifter was given.
+
+    Returns:
+        ``(poses, floor)``: the :class:`Poses3D` and the :class:`rmpl.geometry.floor.Floor`
+        the lifter read (the user's, or the estimated one), or None: no floor given, a
+        lifter that does not read it, or none could be estimated.
     """
     cfg = config or RunConfig()
+    floor = _checked_floor_spec(floor, rig)
     T = keypoints.shape[0]
     if temporal and cfg.filter == "butterworth" and fps is not None and not _is_temporal(cfg):
         check_cutoff(cfg.cutoff, fps)  # before the long part (the temporal model has no filter)
@@ -553,11 +695,14 @@ def run(
     present = (scores > 0).any(-1)  # (T, V, N_in): the people associate_frames saw
     uncertainty = None
     if _is_temporal(cfg):  # whole tracks through the temporal lifter: it is the filter
-        answer = _lift_people(people, rig, fps, cfg, joints)
-        tracks, uncertainty, views, ids, interpolated, index, skeleton = answer
+        answer = _lift_people(people, rig, fps, cfg, joints, floor)
+        tracks, uncertainty, views, ids, interpolated, index, skeleton, floor = answer
         membership, excluded = view_records(people, index, present)
     else:
-        fn = _estimator(cfg, used=True, joints=joints)
+        lifter = _lifter(cfg)
+        reads = lifter is not None and lifter.reads_floor
+        floor = _run_floor(floor, people, rig, cfg, reads)
+        fn = _estimator(cfg, used=True, joints=joints, floor=floor, lifter=lifter)
         skeleton = fn.skeleton or input_skeleton(keypoints.shape[-2], joints)
         pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
         tracks, views, ids, index = _track(pts, nv, cfg)
@@ -569,7 +714,7 @@ def run(
     source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))
     tracks[~ok] = np.nan
-    return Poses3D(
+    poses = Poses3D(
         points=tracks,
         scores=None,
         flags=flags.astype(np.uint8),
@@ -583,3 +728,13 @@ def run(
         views_excluded=np.where(ok.any(-1)[..., None], excluded, 0),
         camera_names=rig.names,
     )
+    return poses, floor
+
+
+def _lifter(cfg: RunConfig):
+    """The per-frame :class:`rmpl.Lifter` of ``cfg``, or None for triangulation."""
+    if cfg.method != "rmpl":
+        return None
+    from rmpl.inference import Lifter
+
+    return Lifter.from_pretrained(cfg.model)

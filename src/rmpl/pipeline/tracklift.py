@@ -66,6 +66,7 @@ def lift_tracks(
     max_gap: int = 20,
     up: np.ndarray | None = None,
     joints: str | None = None,
+    floor=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lift every track with a temporal lifter.
 
@@ -75,6 +76,9 @@ def lift_tracks(
         fps: frames per second. max_gap: the longest absence bridged, frames.
         up: world up axis (3,), or None to estimate it from the rig.
         joints: the 2D's joint set (None: the model's when J_2d matches, else COCO-17).
+        floor: the floor (:class:`rmpl.geometry.floor.Floor`) for a model that reads it
+            (:attr:`~rmpl.inference_temporal.TemporalLifter.reads_floor`; others ignore it),
+            the same for every track; None = unknown.
 
     Returns:
         points (T, P, J, 3) metres, radius (T, P, J) metres (the predicted 50% error radius,
@@ -93,7 +97,7 @@ def lift_tracks(
     for p in range(P):
         for a, b in pieces(present[:, p], max_gap):
             r = lifter.lift_track(
-                keypoints[a:b, p], scores[a:b, p], rig, fps=fps, up=up, joints=joints
+                keypoints[a:b, p], scores[a:b, p], rig, fps=fps, up=up, joints=joints, floor=floor
             )
             points[a:b, p], radius[a:b, p] = r.points, r.radius(0.5)
     if keypoints.shape[-2] != J or joints not in (None, lifter.skeleton.name):
