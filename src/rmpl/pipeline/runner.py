@@ -345,10 +345,13 @@ def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = 
 def _run_floor(floor, people: list[Association], rig: Rig, cfg: RunConfig, reads: bool):
     """The floor the lifter is given: None when it does not read the floor (or ``floor`` is
     None); the checked ``floor``; or with :data:`ESTIMATE`, :func:`estimate_floor` (None,
-    with a log line, when too few poses allow it). Says which in one log line."""
+    with a log line, when too few poses allow it). Says which in one log line (none for
+    triangulation, which has no use for a floor)."""
+    if cfg.method != "rmpl":
+        return None
     if not reads:
         unused = "" if floor is None or isinstance(floor, str) else "; the given one is not used"
-        log.info("floor: none (the %s does not read the floor%s)", _lifter_name(cfg), unused)
+        log.info("floor: none (model %s does not read the floor%s)", cfg.model, unused)
         return None
     if floor is None:
         log.info("floor: none given to the lifter (floor=None)")
@@ -364,10 +367,6 @@ def _run_floor(floor, people: list[Association], rig: Rig, cfg: RunConfig, reads
             return None
     log.info("floor given to the lifter: %s", floor.describe())
     return floor
-
-
-def _lifter_name(cfg: RunConfig) -> str:
-    return f"model {cfg.model}" if cfg.method == "rmpl" else f"method {cfg.method}"
 
 
 def _checked_floor_spec(floor, rig: Rig):
