@@ -179,30 +179,33 @@ def log_joint_sets(joints_2d: str, joints_3d: str) -> None:
 
 def one_camera(rig: Rig, method: str, model: str) -> bool:
     """Whether a run takes the single-view path (:mod:`rmpl.pipeline.monocular`): one
-    camera, learned lifting with a per-frame model."""
+    camera, learned lifting with a per-frame model or a temporal one that reads the floor."""
     if len(rig) != 1 or method != "rmpl":
         return False
+    from rmpl.inference import checkpoint_reads_floor
     from rmpl.inference_temporal import is_temporal_checkpoint
 
-    return not is_temporal_checkpoint(model)
+    return not is_temporal_checkpoint(model) or checkpoint_reads_floor(model)
 
 
 def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_model: bool = False):
     """``rmpl run`` / ``rmpl lift`` with one camera: the lifter, depth from the floor, body
     size and time (:func:`rmpl.pipeline.monocular.lift_single_view`). With ``auto_model``
     (no ``--model`` given) and no floor known, the model is ``rmpl.cli.run.ONE_CAMERA_NO_FLOOR``
-    (the floor model was chosen with the floor given; docs/results.md)."""
+    (the floor model was chosen with the floor given; docs/results.md); with a floor, a frame
+    rate and whole tracks (``temporal``), ``rmpl.cli.run.ONE_CAMERA_TEMPORAL`` when set."""
     from dataclasses import replace
 
+    from rmpl.cli.run import ONE_CAMERA_NO_FLOOR, ONE_CAMERA_TEMPORAL
     from rmpl.pipeline.monocular import lift_single_view
 
     up = None if cfg.up is None else np.asarray(cfg.up, float)
     floor = resolve_floor(floor_spec, inputs.rig, up)
     if auto_model and floor is None:
-        from rmpl.cli.run import ONE_CAMERA_NO_FLOOR
-
         log.info("no floor: lifting with --model %s and the body-size prior", ONE_CAMERA_NO_FLOOR)
         cfg = replace(cfg, model=ONE_CAMERA_NO_FLOOR)
+    elif auto_model and temporal and inputs.fps is not None and ONE_CAMERA_TEMPORAL:
+        cfg = replace(cfg, model=ONE_CAMERA_TEMPORAL)
     if temporal and cfg.filter == "butterworth" and inputs.fps is not None:
         from rmpl.pipeline.runner import check_cutoff
 

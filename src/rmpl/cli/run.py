@@ -171,9 +171,11 @@ def per_frame_model(num_cameras: int) -> str:
 
 
 #: ``rmpl run``'s shipped models when ``--model`` is not given (docs/results.md says how each
-#: was chosen): per frame, over whole tracks, one camera with a floor and without one.
+#: was chosen): per frame, over whole tracks, one camera with a floor and without one, and
+#: one camera with a floor and a frame rate (whole tracks; None: ``ONE_CAMERA`` per frame).
 PER_FRAME, TEMPORAL, ONE_CAMERA = "floor26", "temporal26", "floor26"
 ONE_CAMERA_NO_FLOOR = "default"
+ONE_CAMERA_TEMPORAL: str | None = None
 
 
 def _warn_unused_filter(args: argparse.Namespace) -> None:
