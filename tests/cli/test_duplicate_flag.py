@@ -37,13 +37,13 @@ def test_the_tolerance_reaches_the_association(tmp_path, monkeypatch, value, exp
     import rmpl.pipeline.runner as runner
 
     seen = []
-    real = runner.run
+    real = runner.run_with_floor
 
     def spy(*args, **kwargs):
         seen.append(args[5].association.duplicate_tolerance)
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(runner, "run", spy)
+    monkeypatch.setattr(runner, "run_with_floor", spy)
     extra = [] if value is None else ["--duplicate-tolerance", value]
     assert main([*BASE, "--out", str(tmp_path / "o"), *extra]) == 0
     assert seen == [expected]

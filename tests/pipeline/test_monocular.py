@@ -1,5 +1,6 @@
 """One camera: depth from the floor, body size and time (rmpl.pipeline.monocular)."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from rmpl.pipeline.monocular import (
     floor_log_scale,
     may_touch_floor,
     monocular_people,
+    per_frame_log_scale,
     stature_proxy,
     track_log_depth,
 )
@@ -62,6 +64,20 @@ def test_stature_proxy_scales_and_ignores_posture():
     assert np.allclose(stature_proxy(1.1 * x), 1.1 * h)
     R = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0.0]])  # lying down: same bones
     assert np.allclose(stature_proxy(x @ R.T), h)
+
+
+def test_collapsed_pose_has_no_size_and_no_cue():
+    # An untrained lifter can put every joint on one point: no stature, so no size cue
+    # (NaN, ignored by the combination) rather than an infinite scale and a warning.
+    x = walk()[:3].copy()
+    x[1] = x[1, :1]  # every joint at the nose
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        h = stature_proxy(x)
+        cues = FrameCues(np.full(3, np.nan), np.full(3, np.nan), h, np.ones(3, bool))
+        log_s, sd = per_frame_log_scale(cues, MonocularConfig())
+    assert np.isfinite(h[[0, 2]]).all() and np.isnan(h[1])
+    assert np.isfinite(log_s).all() and np.isfinite(sd).all()  # the lifter's own depth
 
 
 def test_posture_gate_lying_and_seated():

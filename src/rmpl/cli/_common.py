@@ -23,12 +23,13 @@ MODEL_HELP = (
 
 #: ``--floor`` help of ``rmpl run`` and ``rmpl lift``.
 FLOOR_HELP = (
-    "one camera: the floor plane that fixes depth. AXIS=H (AXIS one of x, y, z, -x, -y, -z "
-    "pointing up; e.g. z=0: z up, floor at z = 0) or nx,ny,nz,d (the plane n . X = d, n "
-    "pointing up); or a poses file (.npz/.json/.trc) of a multi-view run of the same rig to "
-    "estimate it from; or 'none'. Default: the calibration's convention (the cameras "
-    "upright about a world axis, rolled less than 30 deg, the floor at 0 along it) when it "
-    "has one"
+    "the floor plane, read by the models that take it (floor26, and with one camera the "
+    "depth cues). AXIS=H (AXIS one of x, y, z, -x, -y, -z pointing up; e.g. z=0: z up, floor "
+    "at z = 0) or nx,ny,nz,d (the plane n . X = d, n pointing up); or a poses file "
+    "(.npz/.json/.trc) of a multi-view run of the same rig to estimate it from; or 'none'. "
+    "Default: with two or more cameras, estimated from the run's triangulated people; with "
+    "one, the calibration's convention (the cameras upright about a world axis, rolled less "
+    "than 30 deg, the floor at 0 along it) when it has one"
 )
 
 log = logging.getLogger(__name__)
@@ -188,12 +189,35 @@ def one_camera(rig: Rig, method: str, model: str) -> bool:
     return not is_temporal_checkpoint(model) or checkpoint_reads_floor(model)
 
 
+def multi_view_floor(spec: str | None, rig: Rig, up):
+    """``--floor`` of a run with two or more cameras, for
+    :func:`rmpl.pipeline.runner.run_with_floor`: "estimate" when not given (from the run's
+    own triangulated people), None for "none", else the checked plane
+    (:func:`resolve_floor`)."""
+    if spec is None:
+        return "estimate"
+    return resolve_floor(spec, rig, up)
+
+
+def warn_unused_floor(spec: str | None, used, cfg) -> None:
+    """A ``--floor`` the run's lifter did not read (a model or method that does not take
+    it) is said, not silently dropped."""
+    if spec is not None and spec != "none" and used is None:
+        log.warning(
+            "--floor is not used: %s does not read the floor (floor26 does)",
+            f"--model {cfg.model}" if cfg.method == "rmpl" else f"--method {cfg.method}",
+        )
+
+
 def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_model: bool = False):
     """``rmpl run`` / ``rmpl lift`` with one camera: the lifter, depth from the floor, body
     size and time (:func:`rmpl.pipeline.monocular.lift_single_view`). With ``auto_model``
     (no ``--model`` given) and no floor known, the model is ``rmpl.cli.run.ONE_CAMERA_NO_FLOOR``
     (the floor model was chosen with the floor given; docs/results.md); with a floor, a frame
-    rate and whole tracks (``temporal``), ``rmpl.cli.run.ONE_CAMERA_TEMPORAL`` when set."""
+    rate and whole tracks (``temporal``), ``rmpl.cli.run.ONE_CAMERA_TEMPORAL`` when set.
+
+    Returns:
+        (poses, the floor: a :class:`rmpl.geometry.floor.Floor` or None)."""
     from dataclasses import replace
 
     from rmpl.cli.run import ONE_CAMERA_NO_FLOOR, ONE_CAMERA_TEMPORAL
@@ -210,17 +234,18 @@ def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_mod
         from rmpl.pipeline.runner import check_cutoff
 
         check_cutoff(cfg.cutoff, inputs.fps)
-    return lift_single_view(
+    poses = lift_single_view(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, floor, cfg,
         temporal=temporal, joints=inputs.skeleton,
     )  # fmt: skip
+    return poses, floor
 
 
 def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
     """``rmpl lift`` / ``rmpl triangulate``: per-frame estimates, associated and tracked,
     without temporal smoothing, written to one file."""
     from rmpl.io.poses import save_poses
-    from rmpl.pipeline.runner import RunConfig, run
+    from rmpl.pipeline.runner import RunConfig, run_with_floor
 
     out = check_output(args.out)
     inputs = load_calibration_and_2d(args)
@@ -231,21 +256,17 @@ def run_single_method(args: argparse.Namespace, method: str, **config) -> int:
 
         config["model"] = per_frame_model(len(inputs.rig))
     cfg = RunConfig(method=method, **config)
-    floor = getattr(args, "floor", None)
+    spec = getattr(args, "floor", None)
     if one_camera(inputs.rig, method, cfg.model):
-        poses = run_one_camera(inputs, cfg, floor, temporal=False, auto_model=auto_model)
+        poses, _ = run_one_camera(inputs, cfg, spec, temporal=False, auto_model=auto_model)
     else:
-        if floor is not None:
-            log.warning(
-                "--floor is not used: it serves one camera with a per-frame model "
-                "(%d cameras, model %s)",
-                len(inputs.rig),
-                cfg.model,
-            )
-        poses = run(
+        up = None if cfg.up is None else np.asarray(cfg.up, float)
+        poses, used = run_with_floor(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
             temporal=False, joints=inputs.skeleton,
+            floor=multi_view_floor(spec, inputs.rig, up),
         )  # fmt: skip
+        warn_unused_floor(spec, used, cfg)
     check_estimated(poses, args, method)
     log_joint_sets(inputs.skeleton, poses.skeleton)
     if out.suffix.lower() in (".trc", ".c3d") and not poses.fps:

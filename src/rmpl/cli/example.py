@@ -37,8 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from rmpl.cli._common import load_calibration_and_2d
     from rmpl.metrics import mpjpe
     from rmpl.pipeline.outputs import FORMATS, write_all
-    from rmpl.pipeline.runner import RunConfig
-    from rmpl.pipeline.runner import run as run_pipeline
+    from rmpl.pipeline.runner import RunConfig, run_with_floor
     from rmpl.skeleton import KP_STAR
 
     ns = argparse.Namespace(
@@ -53,13 +52,13 @@ def run(args: argparse.Namespace) -> int:
     results = {}
     for method in ("rmpl", "robust", "triangulate"):
         cfg = RunConfig(method=method, model=args.model)
-        poses = run_pipeline(
+        poses, floor = run_with_floor(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
             joints=inputs.skeleton,
         )  # fmt: skip
         results[method] = poses.points[:, 0, :17]  # scored on COCO-17 (HALPE-26's first 17)
         if method == "rmpl":
-            write_all(poses, inputs, out, list(FORMATS))
+            write_all(poses, inputs, out, list(FORMATS), floor=floor)
     sc = inputs.scores
     seen = sc[:, :, 0] > 0
     err2d = np.linalg.norm(inputs.keypoints[:, :, 0] - inputs.rig.project(gt), axis=-1)[seen]

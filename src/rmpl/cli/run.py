@@ -26,6 +26,9 @@ default: the calibration's convention), a body-size prior and each track's const
 (rmpl.pipeline.monocular); the log says how much of each, and poses.npz/json hold the
 per-joint uncertainty (the 50% radius of the depth error).
 
+With two or more cameras a model that reads the floor (floor26) is given it too: --floor, or
+by default the floor under the run's own triangulated people; report.md says which.
+
 Besides the exports, OUT gets report.md and report.json (reprojection errors per joint, how
 often each camera was excluded or missed, each person's frames, filled gaps and height, and
 the view check) and OUT/pose-3d/ one TRC + C3D per person for Pose2Sim's kinematics
@@ -204,13 +207,14 @@ def run(args: argparse.Namespace) -> int:
         check_estimated,
         load_calibration_and_2d,
         log_joint_sets,
+        multi_view_floor,
         one_camera,
         run_one_camera,
+        warn_unused_floor,
     )
     from rmpl.cli.lift import axis_vector
     from rmpl.pipeline.outputs import write_all, write_input_overlays
-    from rmpl.pipeline.runner import RunConfig
-    from rmpl.pipeline.runner import run as run_pipeline
+    from rmpl.pipeline.runner import RunConfig, run_with_floor
 
     formats = _formats(args.formats)
     out = Path(args.out)
@@ -238,20 +242,13 @@ def run(args: argparse.Namespace) -> int:
             "default one-camera path uses body size and time)"
         )
     if single:  # depth from the floor, body size and time (it says so in the log)
-        poses = run_one_camera(inputs, cfg, args.floor, temporal=True, auto_model=auto_model)
+        poses, floor = run_one_camera(inputs, cfg, args.floor, temporal=True, auto_model=auto_model)
     else:
-        if args.floor is not None:
-            log.warning(
-                "--floor is not used: it serves one camera with a per-frame model "
-                "(%d cameras, --method %s, --model %s)",
-                len(inputs.rig),
-                args.method,
-                args.model,
-            )
-        poses = run_pipeline(
+        poses, floor = run_with_floor(
             inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
-            joints=inputs.skeleton,
+            joints=inputs.skeleton, floor=multi_view_floor(args.floor, inputs.rig, up),
         )  # fmt: skip
+        warn_unused_floor(args.floor, floor, cfg)
     check_estimated(poses, args, args.method)
     log_joint_sets(inputs.skeleton, poses.skeleton)
     if not single and poses.uncertainty is not None and np.isfinite(poses.uncertainty).any():
@@ -276,5 +273,6 @@ def run(args: argparse.Namespace) -> int:
         overlays=overlays,
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
         up=None if up is None else np.asarray(up, float),
+        floor=floor,
     )
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)

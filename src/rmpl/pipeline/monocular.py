@@ -92,6 +92,7 @@ CONVENTION_FLOOR_SD = 0.05
 #: (shoulder height - ankle height) / stature for adults: 0.818 - 0.039 (Winter's segment
 #: ratios); shin + thigh + trunk (mid-hip to mid-shoulder) spans it.
 STATURE_RATIO = 0.779
+_MIN_PROXY = 1e-3  # metres: below this a pose has collapsed to a point (stature_proxy)
 #: The 50% radius of a one-dimensional normal error, in standard deviations.
 RADIUS_50_1D = 0.674
 
@@ -207,7 +208,8 @@ def stature_proxy(points: np.ndarray) -> np.ndarray:
 
     Shin and thigh are averaged over the sides that are finite; trunk is mid-hip to
     mid-shoulder. Bone lengths do not depend on posture, so the proxy is the same standing,
-    seated or lying. NaN when a bone is missing on both sides.
+    seated or lying. NaN when a bone is missing on both sides, or when the bones add up to
+    less than a millimetre (a collapsed pose: no size to read).
 
     Args:
         points: COCO-17 joints (*, 17, 3), metres.
@@ -229,7 +231,8 @@ def stature_proxy(points: np.ndarray) -> np.ndarray:
                                      bone("right_hip", "right_knee")]), 0)  # fmt: skip
     shoulders = x[..., [_J["left_shoulder"], _J["right_shoulder"]], :].mean(-2)
     trunk = np.linalg.norm(shoulders - x[..., _HIPS, :].mean(-2), axis=-1)
-    return (shin + thigh + trunk) / STATURE_RATIO
+    proxy = (shin + thigh + trunk) / STATURE_RATIO
+    return np.where(proxy > _MIN_PROXY, proxy, np.nan)  # a collapsed pose has no size
 
 
 @contextmanager

@@ -70,6 +70,7 @@ def write_all(
     overlays=None,
     pose2sim: str | None = "pose2sim-y-up",
     up=None,
+    floor="not recorded",
 ):
     """The run report, every requested export plus the viewer page, the pictures and
     ``overlays(folder)``, committed into ``out`` as one set
@@ -83,7 +84,9 @@ def write_all(
     COCO_17 or HALPE_26 markers, by the poses' joint set), in
     a world turned so that its up axis (``up``, (3,), else estimated from the cameras) is +z.
     A summary is logged after the commit; a person whose views disagree in most frames gets
-    a WARNING banner.
+    a WARNING banner. ``floor``: the floor the lifter was given (a
+    :class:`rmpl.geometry.floor.Floor`, or None: none), written to the report; by default
+    not recorded (:data:`rmpl.pipeline.report.NOT_RECORDED`).
 
     Returns:
         The :class:`rmpl.pipeline.report.RunReport`; its ``exit_code`` (0 or 3) is what
@@ -92,7 +95,7 @@ def write_all(
     from rmpl.io.atomic import staged_folder
     from rmpl.pipeline.report import build_report, log_summary, write_report
 
-    report = build_report(poses, inputs)
+    report = build_report(poses, inputs, floor=floor)
     poses = report.poses
     with staged_folder(out) as stage:
         _export(poses, stage, formats)
