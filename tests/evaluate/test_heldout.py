@@ -117,3 +117,21 @@ def test_cli_recording(tmp_path, capsys):
     assert main(args[:-2] + ["--cameras", "a,b"]) == 2
     assert "--cameras" in capsys.readouterr().err
     assert main(args[:-2] + ["--dropout", "0.0", "--out", str(tmp_path / "r2")]) == 0
+
+
+def test_cli_recording_gives_the_floor_to_one_view_methods(tmp_path):
+    # --floor reaches the rmpl+floor methods on a recording (it was once parsed and dropped):
+    # the floor-reading model answers differently on two floors, and results.md names it.
+    make_scene(tmp_path, views=3)
+    args = ["evaluate", "--dataset", "recording", "--calib", str(tmp_path / "calib.toml"),
+            "--keypoints", str(tmp_path / "kp.json"), "--views", "1",
+            "--methods", "rmpl+floor:none@floor26"]  # fmt: skip
+    tables = {}
+    for floor in ("z=0", "z=0.6"):
+        out = tmp_path / floor
+        assert main([*args, "--floor", floor, "--out", str(out)]) == 0
+        text = (out / "results.md").read_text()
+        height = floor.split("=")[1]
+        assert f"= {float(height):.3f} m" in text, text[:1500]
+        tables[floor] = (out / "results.csv").read_text()
+    assert tables["z=0"] != tables["z=0.6"]

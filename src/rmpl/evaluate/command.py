@@ -27,7 +27,7 @@ def evaluate_command(args, command: str):
     floor = getattr(args, "floor", None)
     _check_floor_option(floor, methods, args.dataset)
     if args.dataset == "recording":
-        return _recording(args, methods, command)
+        return _recording(args, methods, command, set_floor(methods, floor))
     if args.root is None:
         raise InputError(None, "--root", f"the {args.dataset} dataset folder", "none")
     if args.calib is not None:
@@ -38,8 +38,9 @@ def evaluate_command(args, command: str):
     return _benchmark(args, config, methods, command)
 
 
-def _recording(args, methods, command: str):
-    """Held-out-view errors on a recording: calibration + 2D files, no ground truth."""
+def _recording(args, methods, command: str, floor_note: str = ""):
+    """Held-out-view errors on a recording: calibration + 2D files, no ground truth;
+    ``floor_note``: what :func:`set_floor` gave the ``rmpl+floor`` methods."""
     from rmpl.evaluate.options import check_min_score, parse_floats, refuse
     from rmpl.evaluate.protocols import run_recording
     from rmpl.pipeline.inputs import InputSpec, load_inputs
@@ -71,6 +72,7 @@ def _recording(args, methods, command: str):
         command=command,
         calib=args.calib,
         sources=args.keypoints,
+        notes=(floor_note,) if floor_note else (),
     )
 
 

@@ -117,7 +117,7 @@ def _people(keypoints: np.ndarray, scores: np.ndarray, rig: Rig, sources: list[s
     return np.concatenate([a.keypoints for a in people]), np.concatenate([a.scores for a in people])
 
 
-def _recording_text(command, n, frames, rig: Rig, min_score: float, rows) -> str:
+def _recording_text(command, n, frames, rig: Rig, min_score: float, rows, notes=()) -> str:
     text = [
         "# rmpl evaluate: recording (held-out views, no ground truth)",
         "",
@@ -132,6 +132,8 @@ def _recording_text(command, n, frames, rig: Rig, min_score: float, rows) -> str
         "are associated across all cameras, the held-out one included (to know which of its "
         "detections to compare), so the association step has seen it.",
         "",
+        *(f"- {note}" for note in notes),
+        *([""] if notes else []),
         markdown_table(rows, HELDOUT_COLUMNS),
     ]
     return "\n".join(text)
@@ -148,6 +150,7 @@ def run_recording(
     command: str,
     calib: str,
     sources: list[str],
+    notes: tuple[str, ...] = (),
 ) -> Report:
     """Held-out-view reprojection errors on a recording without 3D ground truth.
 
@@ -159,6 +162,7 @@ def run_recording(
         min_score: the confidence of a held-out detection used as the reference.
         command: the command line, quoted in results.md.
         calib, sources: the calibration and 2D files, for the messages.
+        notes: lines for results.md's header (e.g. the floor of ``rmpl+floor``).
     """
     from rmpl.evaluate.heldout import heldout_rows, heldout_view_errors
 
@@ -169,5 +173,5 @@ def run_recording(
     kp, sc = _people(keypoints, scores, rig, sources)
     ev = heldout_view_errors(kp, sc, rig, methods, sizes, min_score=min_score, progress=True)
     rows = heldout_rows(ev)
-    text = _recording_text(command, len(kp), len(keypoints), rig, min_score, rows)
+    text = _recording_text(command, len(kp), len(keypoints), rig, min_score, rows, notes)
     return Report(text, {"results.md": text, "results.csv": rows})

@@ -354,7 +354,7 @@ def _run_floor(floor, people: list[Association], rig: Rig, cfg: RunConfig, reads
         log.info("floor: none (model %s does not read the floor%s)", cfg.model, unused)
         return None
     if floor is None:
-        log.info("floor: none given to the lifter (floor=None)")
+        log.info("floor: none given (the lifter goes without)")
         return None
     if isinstance(floor, str):  # ESTIMATE (checked by _checked_floor_spec)
         up = None if cfg.up is None else np.asarray(cfg.up, float)
