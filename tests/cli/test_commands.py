@@ -1,11 +1,13 @@
 """The 3D commands end to end on tiny scenes built here, and their bad-input behaviour."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
+import rmpl
 from rmpl.cli import main
 from rmpl.geometry.camera import Camera, Rig, look_at
 from rmpl.io.calibration import save_rig
@@ -301,8 +303,9 @@ def test_corrupt_model_checkpoint(tmp_path, capsys, tiny_model, damage):
 # --------------------------------------------------------------------------- one camera
 
 
-def _one_camera_walk(tmp_path, height=2.5):
-    """The shipped example's walk (ankles ~0.1 m above z = 0) seen by one camera."""
+def _one_camera_walk(tmp_path, height=2.5, fps=30.0):
+    """The shipped example's walk (ankles ~0.1 m above z = 0) seen by one camera, its 2D
+    file stating ``fps``."""
     from pathlib import Path
 
     import rmpl
@@ -316,7 +319,7 @@ def _one_camera_walk(tmp_path, height=2.5):
     sc = np.full(kp.shape[:-1], 0.9)
     save_rig(rig, tmp_path / "calib.toml")
     save_keypoints(
-        Keypoints2D(kp[:, :, None], sc[:, :, None], "coco17", rig.names, np.arange(60), 30.0),
+        Keypoints2D(kp[:, :, None], sc[:, :, None], "coco17", rig.names, np.arange(60), fps),
         tmp_path / "kp.json",
     )
     return X
@@ -399,12 +402,37 @@ def test_floor_from_a_multi_view_result(tmp_path, caplog):
     assert "estimated from 240 ankle positions" in caplog.text
 
 
-def test_floor_is_ignored_with_several_cameras(tmp_path, tiny_model, caplog):
+def test_floor_is_not_used_by_a_model_that_does_not_read_it(tmp_path, tiny_model, caplog):
     make_scene(tmp_path)
     io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
     a, b = tmp_path / "a.npz", tmp_path / "b.npz"
     assert main(["lift", "--model", tiny_model, *io, "--out", str(a)]) == 0
     with caplog.at_level("WARNING"):
         assert main(["lift", "--model", tiny_model, *io, "--out", str(b), "--floor", "z=0"]) == 0
-    assert "--floor is not used" in caplog.text
+    assert caplog.text.count("the floor given is not used") == 1  # said once
     assert np.array_equal(load_poses(a).points, load_poses(b).points)
+
+
+def test_multi_view_run_gives_floor26_the_floor(tmp_path, caplog):
+    # The embedded 4-camera walk: by default the floor is fitted under the run's own
+    # triangulated people and floor26 reads it; --floor none and a plane change the answer,
+    # and report.json says which floor the lifter read.
+    walk = Path(rmpl.__file__).parent / "examples" / "walk"
+    io = ["--calib", str(walk / "calibration.toml"), "--keypoints", str(walk / "keypoints.json"),
+          "--model", "floor26", "--no-pictures", "--formats", "npz"]  # fmt: skip
+    floors, points = {}, {}
+    for name, extra in (("estimate", []), ("none", ["--floor", "none"]),
+                        ("plane", ["--floor", "z=0.2"])):  # fmt: skip
+        out = tmp_path / name
+        with caplog.at_level("INFO"):
+            assert main(["run", *io, *extra, "--out", str(out)]) == 0
+        floors[name] = json.loads((out / "report.json").read_text())["floor"]
+        points[name] = load_poses(out / "poses.npz").points
+    assert floors["none"] == {"given": False, "description": "none"}
+    est = floors["estimate"]
+    assert est["given"] and "triangulated from the run's 4 cameras" in est["source"]
+    assert abs(est["height_m"]) < 0.1 and est["normal"][2] > 0.99  # the walk is on z = 0
+    assert floors["plane"]["given"] and floors["plane"]["height_m"] == pytest.approx(0.2)
+    assert "floor given to the lifter" in caplog.text
+    for a, b in (("estimate", "none"), ("estimate", "plane")):
+        assert not np.allclose(points[a], points[b], equal_nan=True), (a, b)

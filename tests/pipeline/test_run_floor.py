@@ -177,6 +177,15 @@ def test_too_few_poses_go_on_without_a_floor(models, lift_floors, caplog):
     assert "floor: not estimated" in caplog.text
 
 
+def test_a_joint_set_without_coco17_first_is_one_clear_error(models):
+    # The floor is estimated before the lifter reads the joint set: 14-joint 2D must not
+    # fail inside the estimate (a reshape), but as the lifter's one InputError.
+    rig, kp, sc = _scene()
+    with pytest.raises(InputError, match="coco17 or halpe26"):
+        run_with_floor(kp[..., :14, :], sc[..., :14], rig, joints="shelf14",
+                       config=RunConfig(model=models["floor"]), progress=False)  # fmt: skip
+
+
 def test_the_report_names_the_floor(models):
     rig, kp, sc = _scene()
     poses, floor = run_with_floor(kp, sc, rig, config=RunConfig(model=models["floor"]),
@@ -187,9 +196,9 @@ def test_the_report_names_the_floor(models):
     assert entry["given"] is True and entry["description"] == floor.describe()
     assert entry["height_m"] == pytest.approx(floor.height, abs=1e-6)
     assert entry["spread_m"] is not None and "triangulated" in entry["source"]
-    assert f"Floor given to the lifter: {floor.describe()}." in r.to_markdown()
+    assert f"Floor: {floor.describe()}." in r.to_markdown()
     none = build_report(poses, inputs, floor=None)
     assert none.to_json()["floor"] == {"given": False, "description": "none"}
-    assert "Floor given to the lifter: none." in none.to_markdown()
+    assert "Floor: none." in none.to_markdown()
     unsaid = build_report(poses, inputs)
     assert unsaid.to_json()["floor"] is None and "Floor given" not in unsaid.to_markdown()

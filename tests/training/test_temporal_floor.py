@@ -200,6 +200,45 @@ def test_one_camera_with_a_temporal_floor_model_lifts_whole_tracks(floor_run, mo
                                    ground, cfg)  # fmt: skip
 
 
+def test_one_camera_temporal_tracks_are_cut_at_gaps_longer_than_max_gap(floor_run):
+    # Beyond max_gap frames of misses the track is two pieces, each lifted on its own: the
+    # frames between stay empty (no invented poses), as in the multi-view path.
+    from rmpl.pipeline import monocular
+    from rmpl.pipeline.runner import RunConfig
+
+    d, _ = floor_run
+    kp, sc, rig, _ = _track(T=40, n=1)
+    kp[10:30], sc[10:30] = np.nan, 0  # a 20-frame miss
+    ground = Floor((0.0, 0.0, 1.0), 0.0, "test")
+    args = (kp[:, :, None], sc[:, :, None], Rig((rig[0],)), None, 25.0, ground)
+    short = monocular.lift_single_view(*args, RunConfig(model=str(d / "floor_run"), max_gap=5))
+    seen = np.isfinite(short.points[:, 0]).all((-1, -2))
+    assert seen[:10].all() and seen[30:].all() and not seen[10:30].any()
+    assert (short.num_views[10:30] == 0).all() and (short.flags[10:30] == 0).all()
+    # A max_gap that covers the miss bridges it: the network fills what its windows reach
+    # (up to a window from the seen frames), flagged so.
+    long = monocular.lift_single_view(*args, RunConfig(model=str(d / "floor_run"), max_gap=25))
+    filled = np.isfinite(long.points[10:30, 0]).all((-1, -2))
+    assert filled.any() and (long.flags[10:30, 0][filled] == 3).all()
+
+
+def test_rmpl_run_one_camera_temporal_at_a_low_frame_rate(floor_run, tmp_path):
+    # The Butterworth --cutoff (default 6 Hz) is not used by a temporal model: 10 frames/s
+    # (Nyquist 5 Hz) is not refused.
+    from rmpl.cli import main
+    from rmpl.io.poses import load_poses
+    from tests.cli.test_commands import _one_camera_walk
+
+    d, _ = floor_run
+    _one_camera_walk(tmp_path, fps=10.0)
+    io = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    out = tmp_path / "run"
+    code = main(["run", *io, "--out", str(out), "--model", str(d / "floor_run"),
+                 "--floor", "z=0", "--no-pictures", "--formats", "npz"])  # fmt: skip
+    assert code in (0, 3)  # 3: the view check may flag an untrained model's answer
+    assert load_poses(out / "poses.npz").fps == 10
+
+
 def test_one_camera_refuses_a_temporal_model_that_does_not_read_the_floor(floor_run):
     from rmpl.pipeline import monocular
     from rmpl.pipeline.runner import RunConfig
@@ -234,3 +273,26 @@ def test_rmpl_run_one_camera_with_a_temporal_floor_model(floor_run, tmp_path, ca
     assert poses.uncertainty is not None and np.isfinite(poses.uncertainty).all()
     report = json.loads((out / "report.json").read_text())
     assert report["one_camera"]["uncertainty_50_mm_median"] > 0
+
+
+def test_evaluate_takes_a_temporal_floor_model_as_a_sequence_method_only(floor_run, capsys):
+    # rmpl+floor@TEMPORAL lifts whole tracks: a sequence method (refused where there is no
+    # time), with the time cue, and only with a model that reads the floor - never quietly
+    # its per-frame model.
+    from rmpl.cli import main
+    from rmpl.evaluate.methods import parse_methods
+    from rmpl.evaluate.sequences import needs_time
+
+    d, _ = floor_run
+    run, plain = str(d / "floor_run"), str(d / "plain_run")
+    assert needs_time(f"rmpl+floor@{run}") and needs_time(f"rmpl+floor:time@{run}")
+    assert not needs_time("rmpl+floor@floor26") and not needs_time("rmpl+floor")
+    (method,) = parse_methods(f"rmpl+floor@{run}").values()
+    assert method.sequence
+    with pytest.raises(InputError, match="time cue"):
+        parse_methods(f"rmpl+floor:none@{run}")
+    with pytest.raises(InputError, match="reads the floor"):
+        parse_methods(f"rmpl+floor@{plain}")
+    code = main(["evaluate", "--dataset", "synthetic", "--root", str(d / "seq.npz"),
+                 "--methods", f"rmpl+floor@{run}", "--views", "1"])  # fmt: skip
+    assert code == 2 and "per-frame methods" in capsys.readouterr().err

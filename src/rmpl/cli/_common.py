@@ -15,7 +15,7 @@ from rmpl.geometry.camera import Rig
 #: here so that building the parser does not import torch).
 MODEL_HELP = (
     "shipped model (floor26: per frame, COCO-17 + head top, neck, mid-hip and feet, reads the "
-    "floor with one camera; halpe26: the same without the floor; scenes26: halpe26 also "
+    "floor (--floor); halpe26: the same without the floor; scenes26: halpe26 also "
     "trained on multi-person scenes; default: per frame, COCO-17; "
     "occlusion: COCO-17, for many missing keypoints; temporal26 / temporal: whole tracks, "
     "HALPE-26 / COCO-17, need a frame rate) or checkpoint folder"
@@ -117,7 +117,8 @@ def check_cameras(rig: Rig, calib: str, method: str) -> None:
 
 
 def resolve_floor(spec: str | None, rig: Rig, up):
-    """The floor of a one-camera run (:mod:`rmpl.geometry.floor`), checked against the rig.
+    """The floor of a run's ``--floor`` (:mod:`rmpl.geometry.floor`), checked against the
+    rig (with two or more cameras, None is "estimate" instead: :func:`multi_view_floor`).
 
     The floor must be right to a few centimetres: with a camera at height h looking at
     ankles at distance D, a floor error e moves the person by about e D / h along the rays.
@@ -200,13 +201,11 @@ def multi_view_floor(spec: str | None, rig: Rig, up):
 
 
 def warn_unused_floor(spec: str | None, used, cfg) -> None:
-    """A ``--floor`` the run's lifter did not read (a model or method that does not take
-    it) is said, not silently dropped."""
-    if spec is not None and spec != "none" and used is None:
-        log.warning(
-            "--floor is not used: %s does not read the floor (floor26 does)",
-            f"--model {cfg.model}" if cfg.method == "rmpl" else f"--method {cfg.method}",
-        )
+    """A ``--floor`` given to triangulation is said, not silently dropped (a model that
+    does not read it is said by :func:`rmpl.pipeline.runner.run`)."""
+    given = spec is not None and spec.strip().lower() != "none"
+    if given and used is None and cfg.method != "rmpl":
+        log.warning("--floor is not used: --method %s does not read the floor", cfg.method)
 
 
 def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_model: bool = False):
@@ -230,7 +229,11 @@ def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_mod
         cfg = replace(cfg, model=ONE_CAMERA_NO_FLOOR)
     elif auto_model and temporal and inputs.fps is not None and ONE_CAMERA_TEMPORAL:
         cfg = replace(cfg, model=ONE_CAMERA_TEMPORAL)
-    if temporal and cfg.filter == "butterworth" and inputs.fps is not None:
+    from rmpl.inference_temporal import is_temporal_checkpoint
+
+    # A temporal model's tracks are not Butterworth-filtered: its --cutoff does not apply.
+    butterworth = cfg.filter == "butterworth" and not is_temporal_checkpoint(cfg.model)
+    if temporal and butterworth and inputs.fps is not None:
         from rmpl.pipeline.runner import check_cutoff
 
         check_cutoff(cfg.cutoff, inputs.fps)

@@ -133,9 +133,9 @@ def _benchmark(args, config, methods, command: str):
 
 def _refuse_sequences(args) -> None:
     """Sequence methods need frames in time: not the synthetic scenes, not --poses."""
-    from rmpl.evaluate.sequences import is_sequence_method
+    from rmpl.evaluate.sequences import needs_time
 
-    seq = [n.strip() for n in args.methods.split(",") if is_sequence_method(n.strip())]
+    seq = [n.strip() for n in args.methods.split(",") if needs_time(n.strip())]
     if seq and (args.dataset in ("synthetic", "recording") or args.poses):
         where = "--poses" if args.poses else f"--dataset {args.dataset}"
         raise InputError(None, "--methods", f"per-frame methods with {where}", ",".join(seq))

@@ -137,6 +137,13 @@ class MonocularMethod:
             from rmpl.inference_temporal import TemporalLifter
 
             self._temporal = TemporalLifter.from_pretrained(self._model)
+            if not self._temporal.reads_floor:
+                raise InputError(None, "--methods", "rmpl+floor with a temporal model that "
+                                 "reads the floor (or a per-frame model)", self._model)  # fmt: skip
+            if "time" not in self.config.cues:
+                got = f"rmpl+floor:{cues}@{self._model}"
+                raise InputError(None, "--methods", "the time cue with a temporal model (it "
+                                 "lifts whole tracks)", got)  # fmt: skip
             self._lifter = Lifter(self._temporal.model.frame_model, {})
         else:
             self._lifter = Lifter.from_pretrained(self._model)
@@ -195,6 +202,8 @@ class MonocularMethod:
         from rmpl.pipeline.monocular import lift_stretch, monocular_people
 
         if len(rest) == 1:  # per frame
+            if self._temporal is not None:  # is_sequence_method keeps it out of per-frame runs
+                raise ValueError("rmpl+floor with a temporal model lifts sequences only")
             rig = rest[0]
             if not ((sc > 0) & np.isfinite(kp).all(-1)).any():
                 return np.full((*kp.shape[:-3], self._lifter.num_joints, 3), np.nan)

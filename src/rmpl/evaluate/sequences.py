@@ -73,6 +73,17 @@ def is_sequence_method(spec: str) -> bool:
     return name == "rmpl" and bool(arg) and is_temporal_checkpoint(arg)
 
 
+def needs_time(spec: str) -> bool:
+    """Whether the method ``spec`` needs frames in time: a sequence method
+    (:func:`is_sequence_method`) or ``rmpl+floor[:CUES]@MODEL`` with a temporal MODEL (whole
+    one-view tracks, :class:`rmpl.evaluate.methods.MonocularMethod`)."""
+    from rmpl.inference_temporal import is_temporal_checkpoint
+
+    if spec.startswith("rmpl+floor") and "@" in spec:
+        return is_temporal_checkpoint(spec.rpartition("@")[2])
+    return is_sequence_method(spec)
+
+
 @dataclass
 class SequenceMethod:
     """``__call__(kp (M, V, J, 2), sc (M, V, J), frame (M,), num_frames, rig, fps,

@@ -755,7 +755,10 @@ def lift_stretch(
     res = monocular_people(kp, sc, frame, num_frames, rig, fps, floor, config, cfg, lift)
     x = res.points
     if temporal is not None and res.rows is not None and len(x) and fps:
-        x, _ = temporal_tracks(res.rows, kp, sc, rig, fps, floor, temporal, _up(rig, floor, None))
+        x, _, _ = temporal_tracks(
+            res.rows, kp, sc, rig, fps, floor, temporal, _up(rig, floor, None),
+            max_gap=cfg.max_gap,
+        )  # fmt: skip
     elif "time" in config.cues and len(x) and fps:
         x, _ = smooth(x, fps, replace(cfg, cutoff=min(cfg.cutoff, 0.45 * fps)))
     t_idx, p_idx = np.nonzero(np.isfinite(x).all(-1).any(-1))
@@ -891,9 +894,11 @@ def _single_view_temporal(keypoints, scores, rig, frames, fps, floor, cfg, whole
     mono = MonocularConfig.from_cues("time", lifter_sd=FLOOR_MODEL_LIFTER_SD)
     res = monocular_people(kp, sc, t_idx, T, rig, fps, floor, mono, cfg, lift, joints)
     detected = (res.rows >= 0)[..., None]  # (T, P, 1) the view sees the track's person
-    radius = None
+    radius = views = None
     if whole:
-        points, radius = temporal_tracks(res.rows, kp, sc, rig, fps, floor, temporal, up, name)
+        points, radius, views = temporal_tracks(
+            res.rows, kp, sc, rig, fps, floor, temporal, up, name, max_gap=cfg.max_gap
+        )
     else:
         points = res.points
     ok = np.isfinite(points).all(-1)
@@ -912,7 +917,7 @@ def _single_view_temporal(keypoints, scores, rig, frames, fps, floor, cfg, whole
     return Poses3D(
         points=points,
         flags=flags.astype(np.uint8),
-        num_views=(ok & detected).astype(np.int32),
+        num_views=(ok & detected).astype(np.int32) if views is None else views * ok,
         skeleton=res.skeleton,
         frames=np.arange(T) if frames is None else np.asarray(frames),
         fps=fps,
@@ -921,8 +926,14 @@ def _single_view_temporal(keypoints, scores, rig, frames, fps, floor, cfg, whole
     )
 
 
-def temporal_tracks(rows, kp, sc, rig: Rig, fps, floor, lifter, up=None, joints=None):
+def temporal_tracks(
+    rows, kp, sc, rig: Rig, fps, floor, lifter, up=None, joints=None, max_gap: int = 20
+):
     """Lift each one-view track as a whole with a temporal lifter.
+
+    A track is cut where the view misses its person for more than ``max_gap`` frames
+    (:func:`rmpl.pipeline.tracklift.pieces`, as multi-view tracks are): each piece is lifted
+    on its own, and the frames between pieces stay empty.
 
     Args:
         rows: (T, P) the row of ``kp`` each track is in each frame, -1 none
@@ -931,25 +942,30 @@ def temporal_tracks(rows, kp, sc, rig: Rig, fps, floor, lifter, up=None, joints=
         rig: one camera. fps: frames per second. floor: the floor or None.
         lifter: a :class:`rmpl.inference_temporal.TemporalLifter`. up: the world's up.
         joints: the 2D's joint set.
+        max_gap: the longest miss (frames) a piece bridges (``RunConfig.max_gap``).
 
     Returns:
-        points (T, P, J, 3) metres and their 50% error radius (T, P, J) metres; NaN before a
-        track's first and after its last frame. Frames inside a track where the view misses
-        the person are the network's fill.
+        points (T, P, J, 3) metres, their 50% error radius (T, P, J) metres and the number
+        of views that saw each joint (T, P, J), 0 or 1; NaN (0) outside a track's pieces.
+        Frames inside a piece where the view misses the person are the network's fill.
     """
+    from rmpl.pipeline.tracklift import pieces
+
     T, P = rows.shape
     J = lifter.num_joints
     points, radius = np.full((T, P, J, 3), np.nan), np.full((T, P, J), np.nan)
+    views = np.zeros((T, P, J), np.int32)
     for p in range(P):
         have = rows[:, p] >= 0
-        if not have.any():
-            continue
-        tk = np.full((T, *kp.shape[1:]), np.nan)
-        ts = np.zeros((T, *sc.shape[1:]))
-        tk[have], ts[have] = kp[rows[have, p]], sc[rows[have, p]]
-        track = lifter.lift_track(tk, ts, rig, fps=fps, up=up, joints=joints, floor=floor)
-        points[:, p], radius[:, p] = track.points, track.radius(0.5)
-    return points, radius
+        for a, b in pieces(have, max_gap):
+            h = have[a:b]
+            tk = np.full((b - a, *kp.shape[1:]), np.nan)
+            ts = np.zeros((b - a, *sc.shape[1:]))
+            tk[h], ts[h] = kp[rows[a:b][h, p]], sc[rows[a:b][h, p]]
+            track = lifter.lift_track(tk, ts, rig, fps=fps, up=up, joints=joints, floor=floor)
+            points[a:b, p], radius[a:b, p] = track.points, track.radius(0.5)
+            views[a:b, p] = track.num_views
+    return points, radius, views
 
 
 def _log_summary(

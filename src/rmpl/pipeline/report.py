@@ -534,7 +534,7 @@ def _markdown(r: RunReport) -> str:
         "",
     ]
     if r.floor is not None:
-        md += [f"Floor given to the lifter: {r.floor['description']}.", ""]
+        md += [f"Floor: {r.floor['description']}.", ""]
     md += [
         "## Verdict",
         "",

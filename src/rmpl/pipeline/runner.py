@@ -335,6 +335,9 @@ def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = 
     found = [a for a in people if len(a)]
     if not found:
         raise InputError(None, "floor", "people seen by 2+ cameras to estimate it", "none")
+    if found[0].keypoints.shape[-2] < _COCO_JOINTS:
+        raise InputError(None, "floor", "2D whose first 17 joints are COCO-17's to estimate it",
+                         f"{found[0].keypoints.shape[-2]} joints")  # fmt: skip
     kp = np.concatenate([a.keypoints[..., :_COCO_JOINTS, :] for a in found])  # (N, V, 17, 2)
     sc = np.concatenate([a.scores[..., :_COCO_JOINTS] for a in found])
     points = triangulate(kp, sc, rig).points  # (N, 17, 3), NaN where < 2 views
@@ -350,8 +353,11 @@ def _run_floor(floor, people: list[Association], rig: Rig, cfg: RunConfig, reads
     if cfg.method != "rmpl":
         return None
     if not reads:
-        unused = "" if floor is None or isinstance(floor, str) else "; the given one is not used"
-        log.info("floor: none (model %s does not read the floor%s)", cfg.model, unused)
+        if floor is None or isinstance(floor, str):
+            log.info("floor: none (model %s does not read the floor)", cfg.model)
+        else:
+            log.warning("the floor given is not used: model %s does not read the floor "
+                        "(floor26 does)", cfg.model)  # fmt: skip
         return None
     if floor is None:
         log.info("floor: none given (the lifter goes without)")
