@@ -14,7 +14,8 @@ baselines use its COCO-17 joints (the first 17); a lifter takes the joints its m
 the body-size prior and (with "time") whole tracks; CUES is any of floor, size, time joined
 by + (default all three), or "none" (the lifter's own depth). A MODEL that reads the floor
 (``rmpl+floor:time@floor26``) is given it, in one view and in more. With two or more views
-it is the plain lifter. Its floor is set by ``rmpl evaluate --floor``
+it is the plain lifter. A temporal MODEL that reads the floor lifts each one-view track
+whole (it needs the time cue and a dataset in time). Its floor is set by ``rmpl evaluate --floor``
 (:attr:`MonocularMethod.floor`). Its poses have the model's joints (the cues read the
 COCO-17 ones and the depth moves all).
 """
@@ -202,7 +203,7 @@ class MonocularMethod:
         from rmpl.pipeline.monocular import lift_stretch, monocular_people
 
         if len(rest) == 1:  # per frame
-            if self._temporal is not None:  # is_sequence_method keeps it out of per-frame runs
+            if self._temporal is not None:  # its cues hold "time": the harness runs it in time
                 raise ValueError("rmpl+floor with a temporal model lifts sequences only")
             rig = rest[0]
             if not ((sc > 0) & np.isfinite(kp).all(-1)).any():
