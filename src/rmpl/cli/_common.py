@@ -195,8 +195,10 @@ def multi_view_floor(spec: str | None, rig: Rig, up):
     :func:`rmpl.pipeline.runner.run_with_floor`: "estimate" when not given (from the run's
     own triangulated people), None for "none", else the checked plane
     (:func:`resolve_floor`)."""
+    from rmpl.pipeline.runner import ESTIMATE
+
     if spec is None:
-        return "estimate"
+        return ESTIMATE
     return resolve_floor(spec, rig, up)
 
 
@@ -229,14 +231,9 @@ def run_one_camera(inputs, cfg, floor_spec: str | None, temporal: bool, auto_mod
         cfg = replace(cfg, model=ONE_CAMERA_NO_FLOOR)
     elif auto_model and temporal and inputs.fps is not None and ONE_CAMERA_TEMPORAL:
         cfg = replace(cfg, model=ONE_CAMERA_TEMPORAL)
-    from rmpl.inference_temporal import is_temporal_checkpoint
+    from rmpl.pipeline.runner import check_run_cutoff
 
-    # A temporal model's tracks are not Butterworth-filtered: its --cutoff does not apply.
-    butterworth = cfg.filter == "butterworth" and not is_temporal_checkpoint(cfg.model)
-    if temporal and butterworth and inputs.fps is not None:
-        from rmpl.pipeline.runner import check_cutoff
-
-        check_cutoff(cfg.cutoff, inputs.fps)
+    check_run_cutoff(cfg, inputs.fps, temporal)
     poses = lift_single_view(
         inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, floor, cfg,
         temporal=temporal, joints=inputs.skeleton,

@@ -611,6 +611,13 @@ def check_cutoff(cutoff: float, fps: float) -> None:
         )
 
 
+def check_run_cutoff(cfg: RunConfig, fps: float | None, temporal: bool = True) -> None:
+    """:func:`check_cutoff` for a run that will apply the Butterworth filter: ``temporal``
+    smoothing, a known ``fps``, and not a temporal model (its tracks are not filtered)."""
+    if temporal and cfg.filter == "butterworth" and fps is not None and not _is_temporal(cfg):
+        check_cutoff(cfg.cutoff, fps)
+
+
 def drop_far(keypoints: np.ndarray, scores: np.ndarray, rig: Rig):
     """Keypoints (T, V, P, J, 2) far outside their image become missing, with a warning."""
     kp, sc, far = drop_far_keypoints(keypoints, scores, rig.sizes, view_axis=-4)
@@ -693,8 +700,7 @@ def run_with_floor(
     cfg = config or RunConfig()
     floor = _checked_floor_spec(floor, rig)
     T = keypoints.shape[0]
-    if temporal and cfg.filter == "butterworth" and fps is not None and not _is_temporal(cfg):
-        check_cutoff(cfg.cutoff, fps)  # before the long part (the temporal model has no filter)
+    check_run_cutoff(cfg, fps, temporal)  # before the long part
     keypoints, scores = drop_far(keypoints, scores, rig)
     people = associate_frames(keypoints, scores, rig, cfg.association, progress)
     present = (scores > 0).any(-1)  # (T, V, N_in): the people associate_frames saw
