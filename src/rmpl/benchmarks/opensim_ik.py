@@ -45,7 +45,7 @@ differences times fps squared, degrees / s^2 (lower is smoother).
 
 Usage (rmpl's venv; the OpenSim venv from scripts/setup_opensim.sh)::
 
-    python scripts/opensim_ik.py --poses rmpl=demo_rmpl/poses.npz \\
+    python -m rmpl.benchmarks.opensim_ik --poses rmpl=demo_rmpl/poses.npz \\
         triangulate=demo_triangulate/poses.npz robust=demo_robust/poses.npz \\
         --person 0 --out ik_demo/ [--height 1.75] [--mass 70] [--markerset both]
 
@@ -72,7 +72,8 @@ import numpy as np
 
 log = logging.getLogger("opensim_ik")
 
-REPO = Path(__file__).resolve().parents[1]
+#: The checkout: src/rmpl/benchmarks/opensim_ik.py is three folders below it.
+REPO = Path(__file__).resolve().parents[3]
 MARKERSETS = ("shipped", "fixed")
 #: AAOS normal range of motion in the OpenSim model's signs, degrees (see the docstring).
 RANGES = {
@@ -192,7 +193,9 @@ def pick_people(inputs: dict[str, Path], person: int | None):
             elif person in ids:
                 p = ids.index(person)
             else:
-                raise SystemExit(f"{path}: no person {person} (ids {ids})")
+                from rmpl.errors import InputError
+
+                raise InputError(path, "--person", f"one of the ids {ids}", person)
             ref = dict(zip(poses.frames.tolist(), mk[:, p, hip_index], strict=True))
         else:
             p = _nearest(ref, poses.frames, mk[:, :, hip_index])
@@ -523,4 +526,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    if "--worker" in sys.argv:  # in the OpenSim venv, where rmpl is not installed
+        raise SystemExit(main())
+    from rmpl.benchmarks._common import run_main
+
+    raise SystemExit(run_main(main))
