@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -38,3 +39,26 @@ def run_main(main: Callable[[list[str]], int]) -> int:
     except InputError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+
+
+def run_commands(commands: Sequence[Sequence[str]], dry_run: bool = False) -> int:
+    """Run ``rmpl`` commands in order (``["train", CONFIG, ...]``), each printed first.
+
+    Stops at the first that fails and returns its exit code; ``dry_run`` only prints them.
+    Every ``rmpl train`` and ``rmpl generate`` resumes its output folder, so a killed
+    sequence continues where it stopped when run again.
+    """
+    import shlex
+
+    from rmpl.cli import main as rmpl
+
+    for command in commands:
+        print("rmpl " + shlex.join(command), flush=True)
+        if not dry_run and (code := rmpl(list(command))) != 0:
+            return code
+    return 0
+
+
+def toml_string(text: str | Path) -> str:
+    """``text`` as a TOML string for ``--set key=VALUE``: ``bank.npz`` -> ``"bank.npz"``."""
+    return '"' + str(text) + '"'

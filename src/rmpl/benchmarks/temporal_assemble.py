@@ -19,6 +19,7 @@ The filters are rmpl run's defaults (rmpl.pipeline.runner.smooth), cut-off min(6
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -28,6 +29,9 @@ from rmpl.data.sequences import SequenceBank, SequenceSource
 from rmpl.pipeline.runner import RunConfig, smooth
 from rmpl.skeleton import KP_STAR
 from rmpl.training.temporal import load_temporal
+
+#: The shipped COCO-17 temporal model (``--model temporal``).
+SHIPPED = Path(__file__).resolve().parents[1] / "weights" / "temporal"
 
 
 def filtered(X: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -44,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
-    ap.add_argument("model", nargs="?", default="src/rmpl/weights/temporal")
+    ap.add_argument("model", nargs="?", default=str(SHIPPED), help="a temporal checkpoint")
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--windows", type=int, default=64)
     a = ap.parse_args(argv)
