@@ -139,3 +139,45 @@ def test_halpe26_stats(tmp_path, capsys):
     bank = save_pose_set(tmp_path / "b.npz", PoseSet(poses, names, names, np.arange(8)))
     assert run("halpe26_stats", [str(bank)]) == 0
     assert "8 poses" in capsys.readouterr().out
+
+
+def test_duplicate_sweep(tmp_path, capsys):
+    from tests.benchmarks.test_scene_eval import _scene
+
+    d = _scene(extra_slot=False)
+    pad = np.concatenate  # a one-body set in the generator's shard format
+    shard = {
+        "joints3d": pad([d["joints3d"][:, 0], np.zeros((1, 9, 3))], 1),
+        "keypoints": pad([d["keypoints"][:, :, 0], np.zeros((1, 4, 9, 2))], 2),
+        "scores": pad([d["scores"][:, :, 0], np.ones((1, 4, 9))], 2),
+        "projected": pad([d["projected"][:, :, 0], np.zeros((1, 4, 9, 2))], 2),
+        **{k: d[k] for k in ("K", "R", "t", "size")},
+    }
+    np.savez(tmp_path / "shard_00000.npz", **shard)
+    assert run("duplicate_sweep", [str(tmp_path), "3"]) == 0
+    out = capsys.readouterr().out
+    assert "| off | 100.00% of 4 |" in out and "| 0.5 |" in out
+
+
+def test_bench_detect_tracks(tmp_path, capsys):
+    from rmpl.cli import main
+    from tests.cli.test_commands import make_scene
+
+    make_scene(tmp_path, frames=8)
+    out = tmp_path / "trial"
+    argv = [
+        "run",
+        "--calib",
+        str(tmp_path / "calib.toml"),
+        "--keypoints",
+        str(tmp_path / "kp.json"),
+    ]
+    assert main([*argv, "--method", "triangulate", "--no-pictures", "--out", str(out)]) == 0
+    assert run("bench_detect", ["tracks", str(out)]) == 0
+    assert '"frames_with_3plus_views": 8' in capsys.readouterr().out
+
+
+def test_temporal_oracle(shared_data, capsys):
+    root = shared_data / "fixtures" / "shelf"
+    assert run("temporal_oracle", [str(root), "--views", "2"]) == 0
+    assert capsys.readouterr().out
