@@ -181,3 +181,31 @@ def test_temporal_oracle(shared_data, capsys):
     root = shared_data / "fixtures" / "shelf"
     assert run("temporal_oracle", [str(root), "--views", "2"]) == 0
     assert capsys.readouterr().out
+
+
+def _pose_bank(path: Path, n: int = 16) -> Path:
+    """A COCO-17 pose bank of the held-out subject 03 (the selection rules' parametric set)."""
+    from tests.data.test_sequences import _bank
+
+    poses = _bank(segments=1, frames=n).poses  # a standing, walking figure
+    names = np.array(["03"] * n)
+    return save_pose_set(path, PoseSet(poses, names, names, np.arange(n)))
+
+
+def test_halpe26_select(tmp_path, loaded_once, capsys):
+    bank = _pose_bank(tmp_path / "bank.npz")
+    assert run("halpe26_select", [str(bank), "halpe26", "--base", "default", "--samples", "8"]) == 0
+    assert "parametric" in capsys.readouterr().out
+
+
+def test_floor_select(tmp_path, loaded_once, capsys):
+    from tests.data.test_mhp import _fake_mhp
+
+    _fake_mhp(tmp_path / "renders", meshes=1, views=2, shards=1)
+    _fake_sequences(tmp_path / "sequences", shards=1, views=2)
+    bank = _pose_bank(tmp_path / "bank.npz")
+    argv = ["floor26", "--renders", str(tmp_path / "renders"), "--sequences"]
+    argv.append(str(tmp_path / "sequences"))
+    assert run("floor_select", [*argv, "--bank", str(bank), "--samples", "8"]) in (0, 1)
+    out = capsys.readouterr().out
+    assert "(1) one camera" in out and "(2) two to five views" in out

@@ -124,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", default="default", help="the model to compare with")
     ap.add_argument("--mhp", type=Path, help="held-out HALPE-26 renders")
     ap.add_argument("--temporal", action="store_true", help="compare temporal models")
+    ap.add_argument("--samples", type=int, default=512, help="parametric pairs per view count")
     a = ap.parse_args(argv)
     torch.set_num_threads(2)
     if a.temporal:
@@ -141,7 +142,9 @@ def main(argv: list[str] | None = None) -> int:
     head = " | ".join(f"{v} views" for v in VIEWS)
     print(f"| set (base / candidate, KP* mm) | {head} | mean | ratio | rule |")
     print("|---|" + "---:|" * (len(VIEWS) + 3))
-    ok = verdict(parametric(a.bank, lifters), "base", "candidate", "parametric, subject 03")
+    ok = verdict(
+        parametric(a.bank, lifters, a.samples), "base", "candidate", "parametric, subject 03"
+    )
     if a.mhp:
         ok &= verdict(renders(a.mhp, models), "base", "candidate", f"renders {a.mhp}")
     print("selected" if ok else "not selected: ships as an opt-in model")
