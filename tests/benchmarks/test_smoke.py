@@ -209,3 +209,28 @@ def test_floor_select(tmp_path, loaded_once, capsys):
     assert run("floor_select", [*argv, "--bank", str(bank), "--samples", "8"]) in (0, 1)
     out = capsys.readouterr().out
     assert "(1) one camera" in out and "(2) two to five views" in out
+
+
+def test_opensim_ik_names_its_venv_when_absent(tmp_path, capsys):
+    argv = ["--poses", f"rmpl={tmp_path / 'poses.npz'}", "--out", str(tmp_path / "ik")]
+    with pytest.raises(SystemExit) as e:
+        run("opensim_ik", [*argv, "--opensim-venv", str(tmp_path / "none")])
+    assert e.value.code == 2 and "setup_opensim.sh" in capsys.readouterr().err
+
+
+def test_opensim_ik_on_a_tiny_run(tmp_path, capsys):
+    venv = Path(__file__).resolve().parents[2] / ".venv-opensim"
+    if not (venv / "bin" / "python").exists():
+        pytest.skip(f"no OpenSim venv at {venv} (run scripts/setup_opensim.sh)")
+    from rmpl.cli import main
+    from tests.cli.test_commands import make_scene
+
+    make_scene(tmp_path, frames=12)
+    inputs = ["--calib", str(tmp_path / "calib.toml"), "--keypoints", str(tmp_path / "kp.json")]
+    out = tmp_path / "trial"
+    assert (
+        main(["run", *inputs, "--method", "triangulate", "--no-pictures", "--out", str(out)]) == 0
+    )
+    argv = ["--poses", f"tri={out / 'poses.npz'}", "--out", str(tmp_path / "ik"), "--height", "1.7"]
+    assert run("opensim_ik", [*argv, "--markerset", "fixed"]) == 0
+    assert (tmp_path / "ik" / "results.json").exists()
