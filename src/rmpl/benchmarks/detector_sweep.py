@@ -1,4 +1,4 @@
-"""Sweep BlazePoseMulti's options on multi-person scenes of TRAINING subjects (issue 17).
+"""Sweep BlazePoseMulti's options on multi-person scenes of training subjects (never the held-out 03).
 
 For each setting of :data:`SETTINGS` (keyword arguments of
 :class:`rmpl.synth.detect_multi.BlazePoseMulti`, given as ``GenerateConfig.detector_options``)

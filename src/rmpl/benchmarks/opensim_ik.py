@@ -1,4 +1,4 @@
-"""OpenSim scaling + inverse kinematics (through Pose2Sim) on rmpl's per-person TRC: a benchmark.
+"""OpenSim scaling + inverse kinematics (through Pose2Sim) on rmpl's per-person TRC files.
 
 For each input (an rmpl run's ``poses.npz``: the lifter, ``--method triangulate``,
 ``--method robust``, ... of the same recording) this command
