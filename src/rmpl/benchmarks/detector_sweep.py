@@ -1,4 +1,4 @@
-"""Sweep BlazePoseMulti's options on multi-person scenes of training subjects (never the held-out 03).
+"""Sweep BlazePoseMulti's options on multi-person scenes of training subjects (not subject 03).
 
 For each setting of :data:`SETTINGS` (keyword arguments of
 :class:`rmpl.synth.detect_multi.BlazePoseMulti`, given as ``GenerateConfig.detector_options``)
