@@ -450,6 +450,31 @@ def table(results: list[dict]) -> str:
     return "\n".join(rows)
 
 
+def solve_all(picked: dict, truth, args: argparse.Namespace, height: float, python: Path):
+    """Pose2Sim scaling + IK of every input (and of the ground truth, when given) with each
+    marker set of ``args.markerset``; each input's angles are compared with the truth's."""
+    sets = MARKERSETS if args.markerset == "both" else (args.markerset,)
+    results = []
+    for markerset in sets:
+        ref = None
+        if truth is not None:
+            log.info("Shelf ground truth, %s marker set: Pose2Sim scaling + IK ...", markerset)
+            ref = run_one("truth", truth, markerset, args, height, python, truth=True)
+            results.append(ref)
+        for label, one in picked.items():
+            log.info("%s, %s marker set: Pose2Sim scaling + IK ...", label, markerset)
+            r = run_one(label, one, markerset, args, height, python)
+            if ref is not None:
+                r["vs_truth"] = angle_errors(
+                    args.out / f"{label}-{markerset}",
+                    Path(r["trc"]).stem,
+                    args.out / f"truth-{markerset}",
+                    Path(ref["trc"]).stem,
+                )
+            results.append(r)
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--poses", nargs="+", metavar="LABEL=NPZ", help="rmpl poses, first = reference")
@@ -487,26 +512,8 @@ def main(argv: list[str] | None = None) -> int:
     first = next(iter(picked.values()))
     height, source = height_of(first, args.height)
     log.info("participant height %.3f m (%s), mass %.1f kg", height, source, args.mass)
-    sets = MARKERSETS if args.markerset == "both" else (args.markerset,)
     truth = None if args.shelf_gt is None else shelf_truth(args.shelf_gt, args.actor, first.fps)
-    results = []
-    for markerset in sets:
-        ref = None
-        if truth is not None:
-            log.info("Shelf ground truth, %s marker set: Pose2Sim scaling + IK ...", markerset)
-            ref = run_one("truth", truth, markerset, args, height, python, truth=True)
-            results.append(ref)
-        for label, one in picked.items():
-            log.info("%s, %s marker set: Pose2Sim scaling + IK ...", label, markerset)
-            r = run_one(label, one, markerset, args, height, python)
-            if ref is not None:
-                r["vs_truth"] = angle_errors(
-                    args.out / f"{label}-{markerset}",
-                    Path(r["trc"]).stem,
-                    args.out / f"truth-{markerset}",
-                    Path(ref["trc"]).stem,
-                )
-            results.append(r)
+    results = solve_all(picked, truth, args, height, python)
     summary = dict(
         command=" ".join(sys.argv),
         height=height,
