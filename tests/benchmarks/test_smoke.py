@@ -234,3 +234,14 @@ def test_opensim_ik_on_a_tiny_run(tmp_path, capsys):
     argv = ["--poses", f"tri={out / 'poses.npz'}", "--out", str(tmp_path / "ik"), "--height", "1.7"]
     assert run("opensim_ik", [*argv, "--markerset", "fixed"]) == 0
     assert (tmp_path / "ik" / "results.json").exists()
+
+
+def test_make_example_with_the_noise_model(shared_data, tmp_path):
+    from rmpl.io.keypoints import load_keypoints
+
+    argv = ["--poses", str(shared_data / "cmu_mocap"), "--out", str(tmp_path / "walk")]
+    assert run("make_example", [*argv, "--frames", "6", "--detector", "parametric"]) == 0
+    files = sorted(p.name for p in (tmp_path / "walk").iterdir())
+    assert files == ["calibration.toml", "ground_truth.npz", "keypoints.json"]
+    kp = load_keypoints(tmp_path / "walk" / "keypoints.json")
+    assert kp.keypoints.shape[:2] == (6, 4)  # 6 frames, 4 cameras

@@ -220,7 +220,7 @@ def breakdown(results: dict[str, dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out-root", default="/tmp/detector_sweep")
+    ap.add_argument("--out-root", default="detector_sweep", help="where the scene sets go")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--scenes", type=int, default=50)
     ap.add_argument("--views", type=int, default=5)
@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
         for d in args.measure:
             results[str(d)] = measure(d, next(iter(results.values()), None))
         print(table(results) + "\n\n" + breakdown(results))
-        return
+        return 0
     results: dict[str, dict] = {}
     for name, options in SETTINGS.items():
         cfg = GenerateConfig.from_dict(
