@@ -17,6 +17,7 @@ from rmpl.geometry.rays import pixel_to_normalized
 __all__ = [
     "TriangulationResult",
     "triangulate",
+    "triangulate_points",
     "triangulate_robust",
     "reprojection_error",
     "recenter_point",
@@ -59,21 +60,29 @@ def _dlt(xy: np.ndarray, P: np.ndarray, w: np.ndarray) -> np.ndarray:
     Returns:
         Points, shape (*, J, 3); NaN where fewer than 2 views have weight.
     """
-    P = P[..., :, None, :, :]  # (*, V, 1, 3, 4)
-    r0 = xy[..., 0:1] * P[..., 2, :] - P[..., 0, :]  # (*, V, J, 4)
+    lead = np.broadcast_shapes(xy.shape[:-3], P.shape[:-3], w.shape[:-2])
+    V, J = xy.shape[-3], xy.shape[-2]
+    wj = np.moveaxis(np.broadcast_to(w, (*lead, V, J)), -2, -1)  # (*, J, V)
+    enough = (wj > 0).sum(axis=-1) >= 2  # (*, J): only these are solved
+    X = np.full((*lead, J, 3), np.nan)
+    if not enough.any():
+        return X
+    xy = np.moveaxis(np.broadcast_to(xy, (*lead, V, J, 2)), -3, -2)[enough]  # (n, V, 2)
+    P = np.broadcast_to(P[..., None, :, :, :], (*lead, J, V, 3, 4))[enough]  # (n, V, 3, 4)
+    w = wj[enough]  # (n, V)
+    r0 = xy[..., 0:1] * P[..., 2, :] - P[..., 0, :]  # (n, V, 4)
     r1 = xy[..., 1:2] * P[..., 2, :] - P[..., 1, :]
     # Rows scaled to unit length so the weight alone sets each view's influence.
     r0 = r0 / np.linalg.norm(r0, axis=-1, keepdims=True)
     r1 = r1 / np.linalg.norm(r1, axis=-1, keepdims=True)
     w2 = (w * w)[..., None, None]
     M = (w2 * (r0[..., :, None] * r0[..., None, :] + r1[..., :, None] * r1[..., None, :])).sum(
-        axis=-4
-    )  # (*, J, 4, 4)
+        axis=-3
+    )  # (n, 4, 4)
     _, vecs = np.linalg.eigh(M)
     h = vecs[..., :, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
-        X = h[..., :3] / h[..., 3:4]
-    X[(w > 0).sum(axis=-2) < 2] = np.nan
+        X[enough] = h[..., :3] / h[..., 3:4]
     return X
 
 
@@ -136,6 +145,14 @@ def triangulate(
     mean_err = np.where(valid, err, 0).sum(-2) / np.maximum(valid.sum(-2), 1)
     ok = np.isfinite(X).all(-1)
     return TriangulationResult(X, np.where(ok, mean_err, np.nan), valid & ok[..., None, :])
+
+
+def triangulate_points(
+    keypoints: np.ndarray, scores: np.ndarray, rig: Rig, min_score: float = 0.0
+) -> np.ndarray:
+    """:func:`triangulate`'s points (*, J, 3) alone, without the reprojection errors."""
+    _, xy, w, _ = _prepare(keypoints, scores, rig, min_score)
+    return _dlt(xy, _normalized_P(rig), w)
 
 
 def _subset_masks(num_views: int) -> np.ndarray:
