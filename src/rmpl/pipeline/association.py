@@ -18,6 +18,7 @@ Pixels from the top-left; metres.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -148,29 +149,35 @@ class GroupingConfig:
 
 
 def _limb_connections(candidates: Candidates, cfg: GroupingConfig) -> list[tuple]:
-    """Per limb, greedy one-to-one connections by descending affinity.
+    """Per limb, greedy one-to-one connections by descending affinity (ties: the first
+    candidate pair in row-major order).
 
     Returns:
         (affinity, joint a, candidate i, joint b, candidate j) tuples.
     """
     edges = []
+    score = [(p[:, 2] >= cfg.min_part_score).tolist() for p in candidates.points]
     for (a, b), A in zip(candidates.limbs, candidates.affinities, strict=True):
         if A.size == 0:
             continue
-        ok_a = candidates.points[a][:, 2] >= cfg.min_part_score
-        ok_b = candidates.points[b][:, 2] >= cfg.min_part_score
-        S = np.where(ok_a[:, None] & ok_b[None, :] & (A >= cfg.min_affinity), A, -np.inf)
-        order = np.argsort(-S, axis=None, kind="stable")
-        values = S.ravel()[order]
-        finite = np.isfinite(values)
-        stop = len(values) if finite.all() else int(np.argmin(finite))  # the first non-finite
-        rows, cols = np.divmod(order[:stop], S.shape[1])
+        ok_a, ok_b = score[a], score[b]
+        # plain Python: the matrices are a few candidates square
+        pairs = [
+            (-s, i, j)
+            for i, row in enumerate(A.tolist())
+            if ok_a[i]
+            for j, s in enumerate(row)
+            if ok_b[j] and s >= cfg.min_affinity
+        ]
+        if any(s == -math.inf for s, _, _ in pairs):  # an infinite affinity stops the limb
+            continue
+        pairs.sort()
         used_a, used_b = set(), set()
-        for s, i, j in zip(values[:stop].tolist(), rows.tolist(), cols.tolist(), strict=True):
+        for s, i, j in pairs:
             if i not in used_a and j not in used_b:
                 used_a.add(i)
                 used_b.add(j)
-                edges.append((s, a, i, b, j))
+                edges.append((-s, a, i, b, j))
     return edges
 
 
