@@ -255,10 +255,11 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The benchmark's options (shared with ``rmpl bench --run``)."""
-    p.add_argument("--calib", required=True, help="calibration of the trial")
-    p.add_argument("--keypoints", nargs="+", required=True, help="the trial's 2D")
+def add_arguments(p, required: bool = True, out: bool = True) -> None:
+    """The benchmark's options (shared with ``rmpl bench --run``, where ``--calib`` and
+    ``--keypoints`` are checked by :func:`run` and ``--out`` is ``rmpl bench``'s own)."""
+    p.add_argument("--calib", required=required, help="calibration of the trial")
+    p.add_argument("--keypoints", nargs="+", required=required, help="the trial's 2D")
     p.add_argument(
         "--case",
         action="append",
@@ -275,7 +276,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--reference", default=None, help="compare with REFERENCE/<case>/ instead")
     p.add_argument("--tolerance", type=float, default=1e-6, help="metres (default 1e-6)")
     p.add_argument("--work", default=None, help="keep the run folders here (default: temporary)")
-    p.add_argument("--out", default=None, help="write the Markdown here")
+    if out:
+        p.add_argument("--out", default=None, help="write the Markdown here")
 
 
 def _cases(given: list[str] | None) -> dict[str, list[str]]:
@@ -292,6 +294,10 @@ def _cases(given: list[str] | None) -> dict[str, list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Time every case on each version; print (and write) the tables; 1 if outputs differ."""
+    if not args.calib or not args.keypoints:
+        from rmpl.errors import InputError
+
+        raise InputError(None, "--calib/--keypoints", "the trial to time (both)", "missing")
     this = Path(__file__).resolve().parents[2]
     versions = {"this": this}
     if args.baseline:
