@@ -21,6 +21,13 @@ Example (the side-by-side measurement of docs/results.md)::
         --keypoints ../shared/data/shelf_dev --baseline /tmp/base/src --repeat 3 --compare
 
 The same is ``rmpl bench --run ...`` with these options.
+
+``--detect VIDEO ...`` times 2D detection instead: the first ``--frames`` frames of each
+video (decoding included), with the videos shared out among 1, 2, ... worker processes
+(``--workers``) running at once: frames/s per camera and for all cameras together::
+
+    python -m rmpl.benchmarks.speed --detect DEMO/videos/cam01.mp4 DEMO/videos/cam02.mp4 \
+        --frames 100 --workers 1,2
 """
 
 from __future__ import annotations
@@ -32,6 +39,7 @@ import shlex
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +59,11 @@ CASES = {
 STAGES = (
     ("read", "rmpl.cli._common.load_calibration_and_2d"),
     ("3D", "rmpl.pipeline.runner.run_with_floor"),
-    ("  associate + per-frame 3D", "rmpl.pipeline.runner.estimate"),
+    ("  associate", "rmpl.pipeline.runner.associate_frames"),
+    ("  floor", "rmpl.pipeline.runner.estimate_floor"),
+    ("  per-frame 3D (lifter or triangulation)", "rmpl.pipeline.runner.estimate"),
     ("  track", "rmpl.pipeline.runner.track_index"),
+    ("  outliers, gaps, filter", "rmpl.pipeline.runner.smooth"),
     ("  temporal model", "rmpl.pipeline.tracklift.lift_tracks"),
     ("  model export (ONNX)", "rmpl.model.export._session"),
     ("write", "rmpl.pipeline.outputs.write_all"),
@@ -123,6 +134,72 @@ out["total"] = time.perf_counter() - t0
 with open(spec["result"], "w") as f:
     json.dump(out, f)
 """
+
+
+_DETECT = r"""
+import itertools, json, sys, time
+spec = json.loads(sys.argv[1])
+from rmpl.pipeline import detect2d
+det, _ = detect2d._make_detector(spec["detector"])
+out = []
+for path in spec["videos"]:
+    info = detect2d.probe_video(path)
+    n = min(spec["frames"], info.num_frames)
+    start = time.perf_counter()
+    frames = itertools.islice(detect2d.video_frames(info), n)
+    kp, _ = detect2d._detect_stream(frames, n, det, 8, "", False)
+    out.append({"video": path, "frames": n, "seconds": time.perf_counter() - start,
+                "size": [info.width, info.height]})
+det.close()
+print(json.dumps(out))
+"""
+
+
+def detect_scaling(videos: list[str], frames: int, workers: list[int], detector: str) -> str:
+    """2D detection frames/s with the videos shared out among ``w`` processes at once, for
+    each ``w`` in ``workers``: a Markdown table (per camera and all together)."""
+    rows = []
+    for w in workers:
+        groups = [videos[i::w] for i in range(w) if videos[i::w]]
+        start = time.perf_counter()
+        procs = [
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-c",
+                    _DETECT,
+                    json.dumps({"videos": g, "frames": frames, "detector": detector}),
+                ],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )  # fmt: skip
+            for g in groups
+        ]
+        done = [p.communicate() for p in procs]
+        wall = time.perf_counter() - start
+        per_process = []
+        for proc, (out, err) in zip(procs, done, strict=True):
+            if proc.returncode != 0:
+                raise RuntimeError(f"detection failed:\n{err.strip()[-800:]}")
+            per_process.append(json.loads(out.strip().splitlines()[-1]))
+        cams = [c for group in per_process for c in group]
+        total = sum(c["frames"] for c in cams)
+        busy = max(sum(c["seconds"] for c in group) for group in per_process)
+        per_cam = " / ".join(f"{c['frames'] / c['seconds']:.1f}" for c in cams)
+        size = "x".join(str(x) for x in cams[0]["size"])
+        rows.append(
+            f"| {w} | {len(groups)} | {size} | {per_cam} | {total / busy:.1f} | {wall:.1f} |"
+        )
+    head = [
+        f"2D detection ({detector}), the first {frames} frames of each video, decoding "
+        "included; each worker a process detecting its videos one after another.",
+        "",
+        "| workers | processes | frame size | frames/s per camera | frames/s, all cameras "
+        "| wall s (with start-up) |",
+        "|---:|---:|---|---|---:|---:|",
+    ]
+    return "\n".join(head + rows) + "\n"
 
 
 def _one_run(src: Path, argv: list[str], profile: int) -> dict:
@@ -251,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    add_arguments(p)
+    add_arguments(p, required=False)
     return p
 
 
@@ -276,6 +353,10 @@ def add_arguments(p, required: bool = True, out: bool = True) -> None:
     p.add_argument("--reference", default=None, help="compare with REFERENCE/<case>/ instead")
     p.add_argument("--tolerance", type=float, default=1e-6, help="metres (default 1e-6)")
     p.add_argument("--work", default=None, help="keep the run folders here (default: temporary)")
+    p.add_argument("--detect", nargs="+", default=None, help="time 2D detection on these videos")
+    p.add_argument("--frames", type=int, default=100, help="--detect: frames per video")
+    p.add_argument("--workers", default="1,2", help="--detect: worker processes to compare")
+    p.add_argument("--detector", default="blazepose-multi", help="--detect: the 2D detector")
     if out:
         p.add_argument("--out", default=None, help="write the Markdown here")
 
@@ -294,6 +375,12 @@ def _cases(given: list[str] | None) -> dict[str, list[str]]:
 
 def run(args: argparse.Namespace) -> int:
     """Time every case on each version; print (and write) the tables; 1 if outputs differ."""
+    if args.detect:
+        load0 = os.getloadavg()[0]
+        workers = [int(w) for w in args.workers.split(",") if w.strip()]
+        text = detect_scaling(args.detect, args.frames, workers, args.detector)
+        text += f"\nLoad average (1 min) {load0:.2f} before, {os.getloadavg()[0]:.2f} after.\n"
+        return _emit(text, args.out)
     if not args.calib or not args.keypoints:
         from rmpl.errors import InputError
 
@@ -340,13 +427,18 @@ def run(args: argparse.Namespace) -> int:
         for v, st in by_version.items():
             for label, prof in st.get("profiles", {}).items():
                 text += f"\n#### Profile: {case}, {v}, {label}\n\n```\n{prof.strip()}\n```\n"
+    _emit(text, args.out)
+    return 1 if problems else 0
+
+
+def _emit(text: str, out: str | None) -> int:
     print(text)
-    if args.out:
+    if out:
         from rmpl.io.atomic import atomic_path
 
-        with atomic_path(Path(args.out)) as tmp:
+        with atomic_path(Path(out)) as tmp:
             tmp.write_text(text)
-    return 1 if problems else 0
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
