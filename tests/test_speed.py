@@ -172,6 +172,10 @@ def test_onnx_export_is_cached_and_gives_the_same_answer(tmp_path, monkeypatch):
     assert export_key(model) != files[0].stem
     OnnxLifter(model)(rays, scores)
     assert len(list((tmp_path / "onnx").iterdir())) == 2
+    files[0].write_bytes(b"damaged")  # a damaged file is exported again
+    with torch.no_grad():
+        next(model.parameters()).sub_(0.1)
+    np.testing.assert_array_equal(OnnxLifter(model)(rays, scores), fresh)
 
 
 def _run_folder(path, points, status):

@@ -65,7 +65,7 @@ STAGES = (
     ("  track", "rmpl.pipeline.runner.track_index"),
     ("  outliers, gaps, filter", "rmpl.pipeline.runner.smooth"),
     ("  temporal model", "rmpl.pipeline.tracklift.lift_tracks"),
-    ("  model export (ONNX)", "rmpl.model.export._session"),
+    ("  ONNX sessions (export or cache, and start)", "rmpl.model.export._session"),
     ("write", "rmpl.pipeline.outputs.write_all"),
     ("  report", "rmpl.pipeline.report.build_report"),
     ("    view check", "rmpl.pipeline.consistency.check_views"),

@@ -130,11 +130,18 @@ def _session(model: torch.nn.Module, threads: int, **export):
     cache, :data:`CACHE_ENV`, for the next run)."""
     import onnxruntime as ort
 
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
     with tempfile.TemporaryDirectory() as d:
         path = _exported(model, d, **export)
-        opts = ort.SessionOptions()
-        opts.intra_op_num_threads = threads
-        return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        try:
+            return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        except Exception:  # a damaged cache file: export again, beside the session
+            if Path(d) in path.parents:
+                raise
+            path.unlink(missing_ok=True)
+            path = export_onnx(model, Path(d) / "model.onnx", **export)
+            return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
 
 
 class OnnxLifter:
