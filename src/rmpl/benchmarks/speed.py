@@ -149,7 +149,7 @@ for path in spec["videos"]:
     frames = itertools.islice(detect2d.video_frames(info), n)
     kp, _ = detect2d._detect_stream(frames, n, det, 8, "", False)
     out.append({"video": path, "frames": n, "seconds": time.perf_counter() - start,
-                "size": [info.width, info.height]})
+                "size": list(info.size)})
 det.close()
 print(json.dumps(out))
 """
