@@ -57,6 +57,7 @@ import numpy as np
 
 from rmpl.cli._common import FLOOR_HELP, MODEL_HELP, at_least_one, count, positive
 from rmpl.pipeline.association import DUPLICATE_TOLERANCE, AssociationConfig
+from rmpl.pipeline.identity import IdentityConfig
 from rmpl.pipeline.outputs import FORMATS
 
 log = logging.getLogger(__name__)
@@ -107,6 +108,13 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
     )
     parser.add_argument(
+        "--people",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="how many people were filmed, when known: shorter tracks join the others or go",
+    )
+    parser.add_argument(
         "--duplicate-tolerance",
         type=_tolerance,
         default=DUPLICATE_TOLERANCE,
@@ -134,6 +142,14 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="one TRC + C3D per person in OUT/pose-3d/ for Pose2Sim/OpenSim (Pose2Sim's "
         "COCO_17 or HALPE_26 marker names, by the model's joint set): in Pose2Sim's Y-up axes "
         "(default), the world's Z-up axes, or off",
+    )
+    parser.add_argument(
+        "--pose2sim-min-frames",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="people in fewer frames get no TRC + C3D of their own in pose-3d/ (they stay in "
+        "the other exports; default: one second of frames)",
     )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(
@@ -232,6 +248,7 @@ def run(args: argparse.Namespace) -> int:
         min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
         association=AssociationConfig(duplicate_tolerance=args.duplicate_tolerance),
+        identity=IdentityConfig(people=args.people),
     )
     _warn_unused_filter(args)
     single = one_camera(inputs.rig, args.method, args.model)
@@ -274,5 +291,6 @@ def run(args: argparse.Namespace) -> int:
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
         up=None if up is None else np.asarray(up, float),
         floor=floor,
+        pose2sim_min_frames=args.pose2sim_min_frames,
     )
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)
