@@ -24,10 +24,12 @@ speeds are physical limits):
    prediction (at most one second ahead) over the reachable radius, plus the body
    difference over its tolerance. After a long absence position says little and the body
    decides: a person who leaves and returns keeps their identity when the body matches.
-3. **Known number of people** (``people``): while there are more identities than that, the
-   one with the fewest frames joins the identity, of those it never coexists with, whose
-   body and motion fit best (no gate: the user says who can be there), and is dropped when
-   it coexists with all of them.
+3. **Known number of people** (``people``): when there are more identities than that, the
+   longest becomes the first person, then each next longest one present together with all
+   the people chosen so far (surely someone else), until there are ``people``; every other
+   identity, longest first, joins the person, of those it never coexists with, whose body
+   and motion fit best (no gate: the user says who can be there), and is dropped when it
+   coexists with all of them.
 4. **Too short.** An identity seen in fewer than ``min_frames`` frames is dropped.
 5. **Ghosts.** An identity shorter than ``ghost_seconds`` that is never seen by more than
    ``ghost_max_views`` views, while in most of its frames at least ``ghost_min_cameras``
@@ -315,31 +317,39 @@ def _coexist(a: _Fragment, b: _Fragment) -> bool:
 
 
 def _to_people(frags, fps: float, cfg: IdentityConfig, merges: list[dict], drops: list[dict]):
-    """Rule 3: fold the shortest identities into the others until ``cfg.people`` remain."""
-    while len(frags) > cfg.people:
-        short = min(frags, key=lambda f: (len(f.rows), -f.number))
+    """Rule 3: ``cfg.people`` seeds (the longest identity, then each next longest present
+    together with every seed so far: surely another person), then every other identity,
+    longest first, joins the seed it never coexists with that fits best, or is dropped."""
+    if len(frags) <= cfg.people:
+        return frags
+    order = sorted(frags, key=lambda f: (-len(f.rows), f.number))
+    seeds = [order[0]]
+    for f in order[1:]:
+        if len(seeds) < cfg.people and all(_coexist(f, s) for s in seeds):
+            seeds.append(f)
+    seeds += [f for f in order if f not in seeds][: cfg.people - len(seeds)]
+    for f in [f for f in order if f not in seeds]:
         best, best_cost, best_ev = None, np.inf, {}
-        for other in frags:
-            if other is short or _coexist(short, other):
+        for seed in seeds:
+            if _coexist(f, seed):
                 continue
-            first, second = (other, short) if other.first < short.first else (short, other)
+            first, second = (seed, f) if seed.first < f.first else (f, seed)
             c, ev = _link_cost(first, second, fps, cfg, gate=False)
             if c is None:  # interleaved in time: judge by the body alone
-                body = body_difference(short.body, other.body)
+                body = body_difference(f.body, seed.body)
                 c, ev = (0.5 if np.isnan(body) else body / cfg.body_tolerance), {}
             if c < best_cost:
-                best, best_cost, best_ev = other, c, ev
-        frags.remove(short)
+                best, best_cost, best_ev = seed, c, ev
         if best is None:
-            reason = f"present with each of the other {cfg.people} people"
-            drops.append({"kind": "people", "fragment": short.number, "frames": len(short.rows),
+            reason = f"present together with each of the {cfg.people} people"
+            drops.append({"kind": "people", "fragment": f.number, "frames": len(f.rows),
                           "reason": reason})  # fmt: skip
             continue
-        _absorb(best, short)
-        best.body = _merged_body(best.body, short.body)
-        merges.append({"kind": "people", "fragment": short.number, "into": best.number,
+        _absorb(best, f)
+        best.body = _merged_body(best.body, f.body)
+        merges.append({"kind": "people", "fragment": f.number, "into": best.number,
                        **best_ev})  # fmt: skip
-    return frags
+    return seeds
 
 
 def _ghosts(frags, fps: float, cfg: IdentityConfig, views, cameras, drops: list[dict]):
