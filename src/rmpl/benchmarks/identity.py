@@ -90,8 +90,12 @@ def shelf_table(points: np.ndarray, gt: np.ndarray) -> dict:
 
 def recording_table(points: np.ndarray, fps: float | None) -> dict:
     """Per track: frames, share of the recording, largest torso step (m) between frames."""
+    import warnings
+
     T = len(points)
-    torso = np.nanmean(points[:, :, [5, 6, 11, 12]], axis=2) if T else points[:, :, 0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # frames without the torso: NaN
+        torso = np.nanmean(points[:, :, [5, 6, 11, 12]], axis=2)
     rows = []
     for p in range(points.shape[1]):
         present = np.isfinite(points[:, p]).all(-1).any(-1)
