@@ -47,6 +47,8 @@ identities, ``J`` joints. Metres, seconds.
 from __future__ import annotations
 
 import dataclasses
+import math
+import statistics
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -155,14 +157,11 @@ class _Fragment:
     centre: dict[int, np.ndarray] = field(default_factory=dict)  # frame -> (3,)
     body: dict[str, float] = field(default_factory=dict)
     height: float = DEFAULT_HEIGHT
+    first: int = 0  # the first and last frames, kept up to date by _absorb
+    last: int = 0
 
-    @property
-    def first(self) -> int:
-        return min(self.rows)
-
-    @property
-    def last(self) -> int:
-        return max(self.rows)
+    def __post_init__(self) -> None:
+        self.first, self.last = min(self.rows), max(self.rows)
 
 
 def _centre(pose: np.ndarray) -> np.ndarray:
@@ -200,8 +199,7 @@ def body_difference(a: dict[str, float], b: dict[str, float]) -> float:
     common = [k for k in a if k in b and a[k] + b[k] > 0]
     if not common:
         return float("nan")
-    d = [abs(a[k] - b[k]) / (0.5 * (a[k] + b[k])) for k in common]
-    return float(np.median(d))
+    return float(statistics.median(abs(a[k] - b[k]) / (0.5 * (a[k] + b[k])) for k in common))
 
 
 def _edge(frag: _Fragment, end: bool, fps: float) -> tuple[np.ndarray, np.ndarray, int]:
@@ -219,28 +217,28 @@ def _edge(frag: _Fragment, end: bool, fps: float) -> tuple[np.ndarray, np.ndarra
     return frag.centre[t], velocity, t
 
 
-def _link_cost(a: _Fragment, b: _Fragment, fps: float, cfg: IdentityConfig, gate: bool):
+def _link_cost(a: _Fragment, b: _Fragment, fps: float, cfg: IdentityConfig, gate: bool,
+               edges=None):  # fmt: skip
     """(cost, evidence) of ``b`` continuing ``a`` (``b`` starts after ``a`` ends); cost
-    None when refused."""
-    pa, va, ta = _edge(a, True, fps)
-    pb, _, tb = _edge(b, False, fps)
-    if not (np.isfinite(pa).all() and np.isfinite(pb).all()) or tb <= ta:
+    None when refused. ``edges``: ``a``'s end and ``b``'s start when already known."""
+    (pa, va, ta), (pb, _, tb) = edges or (_edge(a, True, fps), _edge(b, False, fps))
+    if tb <= ta:
         return None, {}
     dt = (tb - ta) / fps
-    height = 0.5 * (a.height + b.height)
-    reach = cfg.position_slack * height + cfg.max_speed * dt
-    distance = float(np.linalg.norm(pb - pa))
-    speed = np.linalg.norm(va)
-    if speed > cfg.max_speed:
-        va = va * (cfg.max_speed / speed)
-    predicted = pa + va * min(dt, _PREDICT_SECONDS)
+    reach = cfg.position_slack * 0.5 * (a.height + b.height) + cfg.max_speed * dt
+    distance = math.dist(pa, pb)  # NaN when a fragment has no centre
+    if not np.isfinite(distance) or (gate and distance > reach):
+        return None, {}
     body = body_difference(a.body, b.body)
     evidence = {"gap_frames": int(tb - ta), "distance_m": round(distance, 3),
                 "body_difference": None if np.isnan(body) else round(body, 3)}  # fmt: skip
-    if gate and (distance > reach or (np.isfinite(body) and body > cfg.body_tolerance)):
+    if gate and np.isfinite(body) and body > cfg.body_tolerance:
         return None, evidence
+    speed = math.hypot(*va)
+    ahead = min(dt, _PREDICT_SECONDS) * (min(1.0, cfg.max_speed / speed) if speed > 0 else 0.0)
+    predicted = [p + v * ahead for p, v in zip(pa, va, strict=True)]
     body_cost = 0.5 if np.isnan(body) else body / cfg.body_tolerance
-    return float(np.linalg.norm(pb - predicted)) / reach + body_cost, evidence
+    return math.dist(pb, predicted) / reach + body_cost, evidence
 
 
 def _absorb(into: _Fragment, other: _Fragment) -> tuple[int, int]:
@@ -251,6 +249,7 @@ def _absorb(into: _Fragment, other: _Fragment) -> tuple[int, int]:
         if t in other.centre:
             into.centre[t] = other.centre[t]
     into.parts += other.parts
+    into.first, into.last = min(into.first, other.first), max(into.last, other.last)
     return len(added), len(other.rows) - len(added)
 
 
@@ -260,6 +259,8 @@ def _duplicates(frags: list[_Fragment], cfg: IdentityConfig, merges: list[dict])
         best, best_d = None, np.inf
         for long in frags:
             if long is short or len(long.rows) < len(short.rows):
+                continue
+            if long.first > short.last or long.last < short.first:
                 continue
             shared = [t for t in short.centre if t in long.centre]
             if not shared:
@@ -285,10 +286,12 @@ def _relink(frags: list[_Fragment], fps: float, cfg: IdentityConfig, merges: lis
         return frags
     cost = np.full((n, n), _REFUSED)
     evidence = {}
+    ends = [_edge(f, True, fps) for f in frags]
+    starts = [_edge(f, False, fps) for f in frags]
     for i, a in enumerate(frags):
         for j, b in enumerate(frags):
             if i != j and b.first > a.last:
-                c, ev = _link_cost(a, b, fps, cfg, gate=True)
+                c, ev = _link_cost(a, b, fps, cfg, gate=True, edges=(ends[i], starts[j]))
                 if c is not None:
                     cost[i, j], evidence[i, j] = c, ev
     rows, cols = linear_sum_assignment(cost)
