@@ -13,7 +13,7 @@ between consecutive frames (a swap between two people shows as a jump of their d
 
     python -m rmpl.benchmarks.identity shelf --root SHELF_DIR --out OUT [--poses P.npz]
     python -m rmpl.benchmarks.identity recording --calib CALIB --keypoints KP --out OUT \\
-        [--fps 60] [--people 2] [--poses P.npz]
+        [--fps 60] [--skeleton body25b] [--people 2] [--poses P.npz]
 
 Writes ``OUT/identity.json`` and prints a markdown table.
 """
@@ -156,6 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--calib", help="recording: the calibration")
     parser.add_argument("--keypoints", nargs="+", help="recording: the 2D")
     parser.add_argument("--fps", default=None, help="recording: frame rate")
+    parser.add_argument("--skeleton", default=None, help="recording: rmpl run --skeleton")
     parser.add_argument("--people", default=None, help="rmpl run --people")
     args = parser.parse_args(argv)
     out = Path(args.out)
@@ -175,6 +176,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error("recording needs --calib and --keypoints, or --poses")
         run = ["--calib", args.calib, "--keypoints", *(args.keypoints or [])]
         run += ["--fps", args.fps] if args.fps else []
+        run += ["--skeleton", args.skeleton] if args.skeleton else []
         path = Path(args.poses) if args.poses else _run(run + extra, out / "run")
         poses = load_poses(path)
         result = recording_table(poses.points, poses.fps)
