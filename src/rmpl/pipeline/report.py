@@ -685,6 +685,7 @@ _MERGE_TEXT = {
     "relinked": "re-linked across a gap of {gap_frames} frames ({distance_m} m, body "
     "difference {body_difference})",
     "people": "folded in by --people (gap {gap_frames} frames, body difference {body_difference})",
+    "people-body": "folded in by --people (between its frames; body difference {body_difference})",
 }
 
 
@@ -714,9 +715,8 @@ def _identity_lines(rec: dict) -> list[str]:
         md.append("")
     owner = {f: row["person"] for row in rec["rows"] for f in row["fragments"]}
     for m in rec["merges"]:
-        text = _MERGE_TEXT.get(m["kind"], m["kind"]).format_map(
-            _Blank({k: _cell(v) for k, v in m.items()})
-        )
+        kind = m["kind"] if m["kind"] != "people" or "gap_frames" in m else "people-body"
+        text = _MERGE_TEXT.get(kind, kind).format_map(_Blank({k: _cell(v) for k, v in m.items()}))
         md.append(f"- fragment {m['fragment']} -> person {owner.get(m['into'], '-')}: {text}")
     for d in rec["drops"]:
         md.append(f"- fragment {d['fragment']} dropped ({d['kind']}, {d['frames']} frames): "
