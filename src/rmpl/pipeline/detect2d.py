@@ -102,7 +102,7 @@ DETECTORS: dict[str, Callable[[], object]] = {
     "mediapipe": _mediapipe,
 }
 #: The detector of ``rmpl run --videos/--images``, chosen by measurement
-#: (``scripts/bench_detect.py``; docs/results.md).
+#: (``rmpl.benchmarks.bench_detect``; docs/results.md).
 DEFAULT_DETECTOR = "blazepose-multi"
 
 

@@ -1,4 +1,4 @@
-"""OpenSim scaling + inverse kinematics (through Pose2Sim) on rmpl's per-person TRC: a benchmark.
+"""OpenSim scaling + inverse kinematics (through Pose2Sim) on rmpl's per-person TRC files.
 
 For each input (an rmpl run's ``poses.npz``: the lifter, ``--method triangulate``,
 ``--method robust``, ... of the same recording) this command
@@ -45,7 +45,7 @@ differences times fps squared, degrees / s^2 (lower is smoother).
 
 Usage (rmpl's venv; the OpenSim venv from scripts/setup_opensim.sh)::
 
-    python scripts/opensim_ik.py --poses rmpl=demo_rmpl/poses.npz \\
+    python -m rmpl.benchmarks.opensim_ik --poses rmpl=demo_rmpl/poses.npz \\
         triangulate=demo_triangulate/poses.npz robust=demo_robust/poses.npz \\
         --person 0 --out ik_demo/ [--height 1.75] [--mass 70] [--markerset both]
 
@@ -72,7 +72,8 @@ import numpy as np
 
 log = logging.getLogger("opensim_ik")
 
-REPO = Path(__file__).resolve().parents[1]
+#: The checkout: src/rmpl/benchmarks/opensim_ik.py is three folders below it.
+REPO = Path(__file__).resolve().parents[3]
 MARKERSETS = ("shipped", "fixed")
 #: AAOS normal range of motion in the OpenSim model's signs, degrees (see the docstring).
 RANGES = {
@@ -192,7 +193,9 @@ def pick_people(inputs: dict[str, Path], person: int | None):
             elif person in ids:
                 p = ids.index(person)
             else:
-                raise SystemExit(f"{path}: no person {person} (ids {ids})")
+                from rmpl.errors import InputError
+
+                raise InputError(path, "--person", f"one of the ids {ids}", person)
             ref = dict(zip(poses.frames.tolist(), mk[:, p, hip_index], strict=True))
         else:
             p = _nearest(ref, poses.frames, mk[:, :, hip_index])
@@ -447,6 +450,31 @@ def table(results: list[dict]) -> str:
     return "\n".join(rows)
 
 
+def solve_all(picked: dict, truth, args: argparse.Namespace, height: float, python: Path):
+    """Pose2Sim scaling + IK of every input (and of the ground truth, when given) with each
+    marker set of ``args.markerset``; each input's angles are compared with the truth's."""
+    sets = MARKERSETS if args.markerset == "both" else (args.markerset,)
+    results = []
+    for markerset in sets:
+        ref = None
+        if truth is not None:
+            log.info("Shelf ground truth, %s marker set: Pose2Sim scaling + IK ...", markerset)
+            ref = run_one("truth", truth, markerset, args, height, python, truth=True)
+            results.append(ref)
+        for label, one in picked.items():
+            log.info("%s, %s marker set: Pose2Sim scaling + IK ...", label, markerset)
+            r = run_one(label, one, markerset, args, height, python)
+            if ref is not None:
+                r["vs_truth"] = angle_errors(
+                    args.out / f"{label}-{markerset}",
+                    Path(r["trc"]).stem,
+                    args.out / f"truth-{markerset}",
+                    Path(ref["trc"]).stem,
+                )
+            results.append(r)
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--poses", nargs="+", metavar="LABEL=NPZ", help="rmpl poses, first = reference")
@@ -484,26 +512,8 @@ def main(argv: list[str] | None = None) -> int:
     first = next(iter(picked.values()))
     height, source = height_of(first, args.height)
     log.info("participant height %.3f m (%s), mass %.1f kg", height, source, args.mass)
-    sets = MARKERSETS if args.markerset == "both" else (args.markerset,)
     truth = None if args.shelf_gt is None else shelf_truth(args.shelf_gt, args.actor, first.fps)
-    results = []
-    for markerset in sets:
-        ref = None
-        if truth is not None:
-            log.info("Shelf ground truth, %s marker set: Pose2Sim scaling + IK ...", markerset)
-            ref = run_one("truth", truth, markerset, args, height, python, truth=True)
-            results.append(ref)
-        for label, one in picked.items():
-            log.info("%s, %s marker set: Pose2Sim scaling + IK ...", label, markerset)
-            r = run_one(label, one, markerset, args, height, python)
-            if ref is not None:
-                r["vs_truth"] = angle_errors(
-                    args.out / f"{label}-{markerset}",
-                    Path(r["trc"]).stem,
-                    args.out / f"truth-{markerset}",
-                    Path(ref["trc"]).stem,
-                )
-            results.append(r)
+    results = solve_all(picked, truth, args, height, python)
     summary = dict(
         command=" ".join(sys.argv),
         height=height,
@@ -523,4 +533,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    if "--worker" in sys.argv:  # in the OpenSim venv, where rmpl is not installed
+        raise SystemExit(main())
+    from rmpl.benchmarks._common import run_main
+
+    raise SystemExit(run_main(main))

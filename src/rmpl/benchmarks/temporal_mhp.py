@@ -1,6 +1,6 @@
 """Per-frame and temporal methods on held-out MHP sequences (rendered, real detector).
 
-Usage: python scripts/temporal_mhp.py DIR [--views 2,3,5] [--subsets all|N] [--seed 0]
+Usage: python -m rmpl.benchmarks.temporal_mhp DIR [--views 2,3,5] [--subsets all|N] [--seed 0]
        [--methods NAME,...] [--model default] [--temporal temporal] [--csv FILE]
 
 DIR is an MHP sequence set, e.g. the held-out CMU subject 03 set of
@@ -15,7 +15,7 @@ Methods (:data:`METHODS`: name -> function of one :class:`Track`; add entries th
 - ``triangulate+filter``, ``robust+filter``: weighted DLT / robust triangulation per frame
   with ``rmpl run``'s settings (RunConfig defaults), then ``rmpl run``'s Hampel, gap filling
   and Butterworth (:func:`rmpl.pipeline.runner.smooth`) at the sequence's rate, cut-off
-  min(6 Hz, 0.45 fps), as ``scripts/temporal_synthetic.py`` does;
+  min(6 Hz, 0.45 fps), as ``rmpl.benchmarks.temporal_synthetic`` does;
 - ``rmpl+filter``: the shipped per-frame lifter (``--model``) per frame, then the same;
 - ``rmpl:temporal``: the temporal lifter (``--temporal``) over the whole track.
 
@@ -40,8 +40,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main, set_rig
 from rmpl.data.mhp import load_mhp_sequences
-from rmpl.geometry.camera import Camera, Rig
+from rmpl.geometry.camera import Rig
 from rmpl.pipeline.runner import RunConfig, _estimator, smooth
 from rmpl.skeleton import KP_STAR
 
@@ -119,15 +120,10 @@ def tracks(d: dict[str, np.ndarray], views: tuple[int, ...]):
     """Every sequence of ``d`` (:func:`load_mhp_sequences`) seen by the views ``views``."""
     v = list(views)
     for s in range(len(d["joints3d"])):
-        cams = tuple(
-            Camera(d["K"][s, i], d["R"][s, i], d["t"][s, i], size=tuple(map(int, d["size"][s, i])),
-                   name=str(i))
-            for i in v
-        )  # fmt: skip
         yield Track(
             d["keypoints"][s][:, v].astype(float),
             d["scores"][s][:, v].astype(float),
-            Rig(cams),
+            set_rig(d, s, v),
             d["times"][s].astype(float),
             float(d["fps"][s]),
             d["joints3d"][s].astype(float),
@@ -258,7 +254,7 @@ def table(count: int, subsets, d, result: dict) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", help="an MHP sequence set (rmpl generate, sequence_frames >= 2)")
     ap.add_argument("--views", default="2,3,5", help="view counts, comma-separated")
@@ -274,7 +270,7 @@ def main() -> None:
         help="a control: the exact projections instead of the detections (score 1 inside the "
         "image, 0 outside), so the errors left are the methods' own",
     )
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     import torch
 
     torch.set_num_threads(2)
@@ -310,7 +306,8 @@ def main() -> None:
             w = csv.DictWriter(f, keys)
             w.writeheader()
             w.writerows(out)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

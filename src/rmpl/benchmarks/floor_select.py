@@ -1,6 +1,6 @@
 """Apply the floor model's selection rule (configs/floor26.toml) on held-out data.
 
-    python scripts/floor_select.py CANDIDATE --renders data/mhp26_test \
+    python -m rmpl.benchmarks.floor_select CANDIDATE --renders data/mhp26_test \
         --sequences data/mhp_seq_heldout26 --bank data/bank.npz
 
 All sets are CMU subject 03, which no model trained on.
@@ -11,11 +11,11 @@ then depth from the floor, body size and time), KP* MPJPE on COCO-17 joints:
 (a) every held-out render seen by each of its views alone, per frame (the base with the
 floor and size cues, the candidate with its own depth); (b) held-out MHP sequences, each
 (sequence, view) one track through ``rmpl run``'s one-camera path
-(``scripts/monocular_mhp.py``: the base with all three cues, the candidate with
+(``rmpl.benchmarks.monocular_mhp``: the base with all three cues, the candidate with
 :meth:`rmpl.pipeline.monocular.MonocularConfig.for_model`). It passes when lower on both.
 
 (2) Two or more views (floor not given: the multi-view path does not pass one): the tables
-of ``scripts/halpe26_select.py`` (parametric pairs from the mocap bank BANK, and the renders)
+of ``rmpl.benchmarks.halpe26_select`` (parametric pairs from the mocap bank BANK, and the renders)
 against ``halpe26``. It passes when its mean over 2-5 views is at most 1 mm above on both.
 
 It also prints the candidate's one-view log-depth error on the renders (the mid-hip's distance
@@ -26,25 +26,21 @@ error :data:`rmpl.pipeline.monocular.FLOOR_MODEL_LIFTER_SD` that ``rmpl run`` as
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).parent))
-
-import halpe26_select  # noqa: E402
-import monocular_mhp  # noqa: E402
-
-from rmpl.data.mhp import load_mhp, load_mhp_sequences  # noqa: E402
-from rmpl.evaluate.methods import MonocularMethod  # noqa: E402
-from rmpl.geometry.camera import Camera, Rig  # noqa: E402
-from rmpl.geometry.floor import Floor  # noqa: E402
-from rmpl.inference import Lifter  # noqa: E402
-from rmpl.pipeline.monocular import MonocularConfig  # noqa: E402
-from rmpl.pipeline.runner import RunConfig  # noqa: E402
-from rmpl.skeleton import KP_STAR  # noqa: E402
+from rmpl.benchmarks import halpe26_select, monocular_mhp
+from rmpl.benchmarks._common import run_main
+from rmpl.data.mhp import load_mhp, load_mhp_sequences
+from rmpl.evaluate.methods import MonocularMethod
+from rmpl.geometry.camera import Camera, Rig
+from rmpl.geometry.floor import Floor
+from rmpl.inference import Lifter
+from rmpl.pipeline.monocular import MonocularConfig
+from rmpl.pipeline.runner import RunConfig
+from rmpl.skeleton import KP_STAR
 
 FLOOR = Floor((0.0, 0.0, 1.0), 0.0, source="z=0 (where the renders stand)")
 MARGIN_MM = 1.0
@@ -93,7 +89,33 @@ def one_view_sequences(root: Path, models: dict[str, str]) -> dict[str, float]:
     return out
 
 
-def main() -> int:
+def multi_view_rule(a: argparse.Namespace) -> bool:
+    """Rule (2): with two to five views and no floor, the candidate within MARGIN_MM of the
+    multi-view model before it, on parametric pairs and on the renders; prints the table."""
+    print("(2) two to five views, no floor (KP* MPJPE, mm; before / candidate)\n")
+    models = {"base": a.multi_base, "candidate": a.candidate}
+    lifters = {k: Lifter.from_pretrained(v, backend="torch") for k, v in models.items()}
+    head = " | ".join(f"{v} views" for v in halpe26_select.VIEWS)
+    print(f"| set | {head} | mean | difference | rule |")
+    print("|---|" + "---:|" * (len(halpe26_select.VIEWS) + 3))
+    ok_multi = True
+    tables = {
+        "parametric, subject 03": halpe26_select.parametric(a.bank, lifters, a.samples),
+        f"renders {a.renders}": halpe26_select.renders(a.renders, models),
+    }
+    for label, table in tables.items():
+        views = sorted(table["base"])
+        mb = np.mean([table["base"][v] for v in views])
+        mc = np.mean([table["candidate"][v] for v in views])
+        ok = mc <= mb + MARGIN_MM
+        ok_multi &= ok
+        cells = " | ".join(f"{table['base'][v]:.1f} / {table['candidate'][v]:.1f}" for v in views)
+        print(f"| {label} | {cells} | {mb:.1f} / {mc:.1f} | {mc - mb:+.1f} | "
+              f"{'pass' if ok else 'fail'} |")  # fmt: skip
+    return ok_multi
+
+
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("candidate", help="the floor-reading checkpoint")
     ap.add_argument("--renders", type=Path, required=True, help="held-out HALPE-26 renders")
@@ -101,7 +123,8 @@ def main() -> int:
     ap.add_argument("--bank", type=Path, required=True, help="the mocap pose bank (COCO-17)")
     ap.add_argument("--base", default="default", help="the one-camera model before")
     ap.add_argument("--multi-base", default="halpe26", help="the multi-view model before")
-    a = ap.parse_args()
+    ap.add_argument("--samples", type=int, default=512, help="parametric pairs per view count")
+    a = ap.parse_args(argv)
     torch.set_num_threads(2)
 
     base = MonocularMethod("floor+size", model=a.base)
@@ -132,30 +155,11 @@ def main() -> int:
           f"robust sd (1.4826 MAD) {mad:.3f}, sd {ld.std():.3f} (n = {ld.size}): "
           "FLOOR_MODEL_LIFTER_SD\n")  # fmt: skip
 
-    print("(2) two to five views, no floor (KP* MPJPE, mm; before / candidate)\n")
-    models = {"base": a.multi_base, "candidate": a.candidate}
-    lifters = {k: Lifter.from_pretrained(v, backend="torch") for k, v in models.items()}
-    head = " | ".join(f"{v} views" for v in halpe26_select.VIEWS)
-    print(f"| set | {head} | mean | difference | rule |")
-    print("|---|" + "---:|" * (len(halpe26_select.VIEWS) + 3))
-    ok_multi = True
-    tables = {
-        "parametric, subject 03": halpe26_select.parametric(a.bank, lifters),
-        f"renders {a.renders}": halpe26_select.renders(a.renders, models),
-    }
-    for label, table in tables.items():
-        views = sorted(table["base"])
-        mb = np.mean([table["base"][v] for v in views])
-        mc = np.mean([table["candidate"][v] for v in views])
-        ok = mc <= mb + MARGIN_MM
-        ok_multi &= ok
-        cells = " | ".join(f"{table['base'][v]:.1f} / {table['candidate'][v]:.1f}" for v in views)
-        print(f"| {label} | {cells} | {mb:.1f} / {mc:.1f} | {mc - mb:+.1f} | "
-              f"{'pass' if ok else 'fail'} |")  # fmt: skip
+    ok_multi = multi_view_rule(a)
     verdict = "passes: it also lifts two or more views" if ok_multi else "fails: one camera only"
     print(f"\n(2) {verdict}")
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_main(main))

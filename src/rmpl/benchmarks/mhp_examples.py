@@ -3,7 +3,7 @@
 Draws ``--count`` (mesh, view) samples made exactly as ``rmpl generate`` makes them (same
 config, same code path), and saves them as PNGs no wider than ``--width`` pixels.
 
-  ANNY_CACHE_DIR=/work/cache/anny python scripts/mhp_examples.py configs/mhp.toml \
+  ANNY_CACHE_DIR=~/.cache/rmpl/anny python -m rmpl.benchmarks.mhp_examples configs/mhp.toml \
       --out docs/img --set poses='"../shared/data/cmu_mocap"' --count 4
 """
 
@@ -13,6 +13,8 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+
+from rmpl.benchmarks._common import run_main
 
 _BONES = [
     (5, 7),
@@ -54,7 +56,7 @@ def _draw(image, gt, det, scores, scale):
     return im
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -64,7 +66,7 @@ def main() -> None:
     ap.add_argument("--count", type=int, default=4)
     ap.add_argument("--width", type=int, default=480)
     ap.add_argument("--prefix", default="mhp_example")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
 
     from rmpl.geometry.camera import project
     from rmpl.synth.body import place_bodies
@@ -112,7 +114,8 @@ def main() -> None:
             f"{int((scores[i] == 0).sum())} missed, {path.stat().st_size // 1024} KB"
         )
     worker.close()
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -1,6 +1,7 @@
 """One camera on held-out MHP sequences (rendered, real detector): `rmpl run`'s one-camera path.
 
-    python scripts/monocular_mhp.py DIR [--model default] [--floor z=0] [--cues floor,size,time]
+    python -m rmpl.benchmarks.monocular_mhp DIR [--model default] [--floor z=0] \
+        [--cues floor,size,time]
 
 ``--cues`` defaults to what ``rmpl run`` uses with the model
 (:meth:`rmpl.pipeline.monocular.MonocularConfig.for_model`).
@@ -10,7 +11,7 @@ DIR is an MHP sequence set (``rmpl generate`` with ``sequence_frames``, e.g.
 the floor at z = 0). Each (sequence, view) is one track lifted as ``rmpl run`` does with one
 camera (:func:`rmpl.pipeline.monocular.lift_single_view`: the per-frame lifter, then depth
 from the floor, a body-size prior and time), at the sequence's frame rate (the filters'
-cut-off min(6 Hz, 0.45 fps), as scripts/temporal_mhp.py). The estimate with
+cut-off min(6 Hz, 0.45 fps), as rmpl.benchmarks.temporal_mhp). The estimate with
 the most frames is the person (one body per sequence). Scored on the COCO-17 limb joints
 (KP*) in the frames where it exists: MPJPE, PA-MPJPE, the root (mid-hip) error, the ratio of
 estimated to true height (ankles to the eyes' midpoint, per frame, median) and coverage
@@ -27,6 +28,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.mhp import load_mhp_sequences
 from rmpl.geometry.camera import Camera, Rig
 from rmpl.geometry.floor import parse_floor
@@ -79,7 +81,7 @@ def track(d: dict, s: int, v: int, cfg: RunConfig, floor, mono: MonocularConfig)
     return e, pa, root, _height(x) / _height(gt), seen, inside
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root")
     ap.add_argument("--model", default="default", help="the per-frame model (one camera)")
@@ -88,7 +90,7 @@ def main() -> None:
         "--cues", default=None,
         help="comma-separated cues or 'none' (default: what rmpl run uses with the model)",
     )  # fmt: skip
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     d = load_mhp_sequences(a.root)
     floor = None if a.floor == "none" else parse_floor(a.floor)
     cfg = RunConfig(method="rmpl", model=a.model)
@@ -112,7 +114,8 @@ def main() -> None:
           f"{np.nanmean(pa[est]):.1f} | {np.nanmean(root[est]):.1f} | "
           f"{np.nanmedian(ratio[est]):.3f} | {cover:.1f}% | "
           f"{100 * np.nanmean(inside[est]):.1f}% |")  # fmt: skip
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

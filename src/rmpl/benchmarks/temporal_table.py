@@ -1,13 +1,15 @@
 """The temporal runs' last validation records as a Markdown table (docs/results.md).
 
-Usage: python scripts/temporal_table.py RUNS/t
+python -m rmpl.benchmarks.temporal_table RUNS/t
 """
 
 from __future__ import annotations
 
+import argparse
 import json
-import sys
 from pathlib import Path
+
+from rmpl.benchmarks._common import run_main
 
 COLUMNS = [  # frames with some 2D (the per-frame model answers only those)
     ("temporal_seenframes_2v", "frame_kpstar_2v", "2 views"),
@@ -18,8 +20,10 @@ COLUMNS = [  # frames with some 2D (the per-frame model answers only those)
 ]
 
 
-def main() -> None:
-    root = Path(sys.argv[1])
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs", type=Path, help="a folder of temporal training runs (RUN/log.jsonl)")
+    root = ap.parse_args(argv).runs
     head = " | ".join(c for _, _, c in COLUMNS)
     print(f"| run | steps | minutes | {head} | selection: mean 2/3/5, all frames |")
     print("|---|---:|---:|" + "---:|" * (len(COLUMNS) + 1))
@@ -36,7 +40,8 @@ def main() -> None:
     if first is not None:
         frame = " | ".join(f"{first.get(k, float('nan')):.1f}" for _, k, _ in COLUMNS)
         print(f"| per-frame model alone | — | — | {frame} | — |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -1,24 +1,17 @@
-"""Tests of scripts/foot_eval.py on a tiny fake MHP set with HALPE-26 targets and 2D."""
+"""Tests of rmpl.benchmarks.foot_eval on a tiny fake MHP set with HALPE-26 targets and 2D."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
+from rmpl.benchmarks import foot_eval as fe
 from rmpl.geometry.camera import look_at
 from rmpl.skeleton import COCO17, HALPE26
-
-_PATH = Path(__file__).resolve().parents[2] / "scripts" / "foot_eval.py"
-_spec = importlib.util.spec_from_file_location("foot_eval", _PATH)
-fe = importlib.util.module_from_spec(_spec)
-sys.modules["foot_eval"] = fe
-_spec.loader.exec_module(fe)
 
 W, H = 960, 720
 

@@ -1,6 +1,6 @@
 """Temporal models on held-out synthetic windows (CMU subject 03, the temporal detector model).
 
-Usage: python scripts/temporal_synthetic.py SEQBANK MODEL [MODEL ...] [--windows 128]
+Usage: python -m rmpl.benchmarks.temporal_synthetic SEQBANK MODEL [MODEL ...] [--windows 128]
 Prints per view count: KP* MPJPE (mm) of each temporal model (its answer assembled as its
 lifter does: ``"inference": {"assemble": ...}`` in its config.json) and of its per-frame model
 alone, over the frames with any keypoint; on the joints fewer than two views see; the DLT of
@@ -16,6 +16,7 @@ import argparse
 import numpy as np
 import torch
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.sequences import SequenceBank, SequenceSource
 from rmpl.geometry.triangulate import _dlt
 from rmpl.inference_temporal import RadiusCalibration, TemporalLifter, TrackResult
@@ -57,13 +58,13 @@ def _by_window(m, rays, scores, times):
     return points.reshape(B, T, *points.shape[2:]), sigma.reshape(B, T, -1)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
     ap.add_argument("models", nargs="+")
     ap.add_argument("--windows", type=int, default=128)
     ap.add_argument("--views", default="2,3,5")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     torch.set_num_threads(2)
     _, val = SequenceBank.load(a.bank).split(["03"])
     loaded = {m: load_temporal(m) for m in a.models}
@@ -107,7 +108,8 @@ def main() -> None:
                   f"{ef[common].mean() * 1000:7.1f}  all {ef[seen].mean() * 1000:7.1f}  "
                   f"hard {ef[hard].mean() * 1000:7.1f}"
                   f" | inside 50% {c50 * 100:4.1f}%  90% {c90 * 100:4.1f}%")  # fmt: skip
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

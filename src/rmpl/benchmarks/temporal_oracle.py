@@ -4,7 +4,7 @@ The 2D is associated per view subset as `rmpl evaluate` does; each associated pe
 on its ground-truth actor by Hungarian matching of a per-frame DLT (oracle identity: an upper
 bound on what a tracker gives), then each actor's sequence goes through every method.
 
-Usage: python scripts/temporal_oracle.py SHELF_DEV [MODEL ...] [--fps 25] [--views 2,5]
+Usage: python -m rmpl.benchmarks.temporal_oracle SHELF_DEV [MODEL ...] [--fps 25] [--views 2,5]
 Prints, per view count (mean over subsets): MPJPE on the joints every method estimated, on
 the joints neither triangulation estimated ("hard"), on the part of those the DLT + median
 fills ("hard, filled"), PCK@150 over KP* (missing = wrong), and the share of all scored
@@ -18,6 +18,7 @@ import itertools
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
 from rmpl.evaluate.evalset import gt_coco, load_eval_set
 from rmpl.evaluate.harness import _per_person_input
 from rmpl.geometry import triangulate, triangulate_robust
@@ -124,15 +125,16 @@ def run(root, models, fps, view_counts):
     return results
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root")
     ap.add_argument("models", nargs="*", default=["temporal"])
     ap.add_argument("--fps", type=float, default=25.0)
     ap.add_argument("--views", default="2,5")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     run(a.root, a.models, a.fps, [int(v) for v in a.views.split(",")])
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -1,13 +1,13 @@
 """Apply the HALPE-26 model's selection rule (configs/halpe26.toml) on held-out data.
 
-    python scripts/halpe26_select.py BANK.npz CANDIDATE [--base default] [--mhp DIR]
-    python scripts/halpe26_select.py SEQBANK.npz CANDIDATE --temporal [--base temporal]
+    python -m rmpl.benchmarks.halpe26_select BANK.npz CANDIDATE [--base default] [--mhp DIR]
+    python -m rmpl.benchmarks.halpe26_select SEQBANK.npz CANDIDATE --temporal [--base temporal]
 
 (a) The parametric synthetic held-out set: CMU subject 03 from the mocap pose bank BANK
 (``rmpl poses``, COCO-17), the training validation's detector model and seed (12345, 512
 poses per view count, no keypoint removal), COCO-17 input to both models; KP* MPJPE (mm) on
 COCO-17 joints at 2-5 views. (b) With ``--mhp DIR``, held-out HALPE-26 renders through
-``scripts/foot_eval.py``'s estimate for rmpl, both models on the same 2D, KP* at 2-5 views.
+``rmpl.benchmarks.foot_eval``'s estimate for rmpl, both models on the same 2D, KP* at 2-5 views.
 The candidate passes when its mean over 2-5 views is at most 2% above the base's on each.
 
 With ``--temporal`` (configs/temporal26.toml's rule): held-out windows of the COCO-17 mocap
@@ -19,12 +19,12 @@ assembled as its lifter does; the candidate passes at most 2% above the base.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.synthetic import PairSource, SamplerConfig
 from rmpl.inference import Lifter
 from rmpl.skeleton import KP_STAR, embed, embed_scores
@@ -61,8 +61,7 @@ def parametric(bank: Path, lifters: dict[str, Lifter], size: int = 512) -> dict:
 
 def renders(root: Path, models: dict[str, str]) -> dict:
     """KP* MPJPE (mm) per model and view count on held-out renders (foot_eval's rmpl)."""
-    sys.path.insert(0, str(Path(__file__).parent))
-    import foot_eval
+    from rmpl.benchmarks import foot_eval
 
     d = foot_eval.load_set(root)
     out: dict[str, dict[int, float]] = {}
@@ -118,14 +117,15 @@ def verdict(table: dict, base: str, cand: str, label: str) -> bool:
     return ok
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank", type=Path, help="the mocap pose bank (rmpl poses, COCO-17)")
     ap.add_argument("candidate", help="the HALPE-26 checkpoint")
     ap.add_argument("--base", default="default", help="the model to compare with")
     ap.add_argument("--mhp", type=Path, help="held-out HALPE-26 renders")
     ap.add_argument("--temporal", action="store_true", help="compare temporal models")
-    a = ap.parse_args()
+    ap.add_argument("--samples", type=int, default=512, help="parametric pairs per view count")
+    a = ap.parse_args(argv)
     torch.set_num_threads(2)
     if a.temporal:
         base = "temporal" if a.base == "default" else a.base
@@ -142,7 +142,9 @@ def main() -> int:
     head = " | ".join(f"{v} views" for v in VIEWS)
     print(f"| set (base / candidate, KP* mm) | {head} | mean | ratio | rule |")
     print("|---|" + "---:|" * (len(VIEWS) + 3))
-    ok = verdict(parametric(a.bank, lifters), "base", "candidate", "parametric, subject 03")
+    ok = verdict(
+        parametric(a.bank, lifters, a.samples), "base", "candidate", "parametric, subject 03"
+    )
     if a.mhp:
         ok &= verdict(renders(a.mhp, models), "base", "candidate", f"renders {a.mhp}")
     print("selected" if ok else "not selected: ships as an opt-in model")
@@ -150,4 +152,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_main(main))

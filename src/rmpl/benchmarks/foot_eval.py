@@ -1,6 +1,6 @@
 """Foot accuracy on held-out MHP renders: rmpl against triangulation, per view count.
 
-    python scripts/foot_eval.py DIR [--views 2 4] [--model NAME_OR_PATH] [--csv F]
+    python -m rmpl.benchmarks.foot_eval DIR [--views 2 4] [--model NAME_OR_PATH] [--csv F]
 
 DIR is an ``rmpl generate`` directory (single frames) read by :mod:`rmpl.data.mhp`. Every
 mesh is seen through every subset of ``k`` of its views, for each ``k`` of ``--views``.
@@ -31,9 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main, set_rig
 from rmpl.errors import InputError
 from rmpl.geometry import Rig, triangulate, triangulate_robust
-from rmpl.geometry.camera import Camera
 from rmpl.skeleton import COCO17, HALPE26, KP_STAR, embed, skeleton_for
 
 #: The joint groups of the table: name -> HALPE-26 joint names.
@@ -120,12 +120,7 @@ def load_set(root: Path, limit: int | None = None) -> dict:
 
 
 def _rig(d: dict, m: int) -> Rig:
-    V = d["K"].shape[1]
-    cams = []
-    for v in range(V):
-        size = tuple(int(s) for s in d["size"][m, v]) if "size" in d else None
-        cams.append(Camera(d["K"][m, v], d["R"][m, v], d["t"][m, v], size=size, name=str(v)))
-    return Rig(tuple(cams))
+    return set_rig(d, m, range(d["K"].shape[1]))
 
 
 def estimate(d: dict, lifter, k: int) -> dict[str, np.ndarray]:
@@ -326,7 +321,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     rows = rows_for(d, lifter, sorted(set(args.views)))
-    command = "python scripts/foot_eval.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python -m rmpl.benchmarks.foot_eval " + " ".join(
+        argv if argv is not None else sys.argv[1:]
+    )
     print(report(d, args.root, args.model, lifter, rows, command))
     if args.csv:
         write_csv(args.csv, rows)
@@ -334,4 +331,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    raise SystemExit(run_main(main))

@@ -1,6 +1,6 @@
 """The HALPE-26 points on anny bodies and a detector's 2D of them (docs/results.md, HALPE-26).
 
-    python scripts/halpe26_stats.py BANK.npz [--mhp DIR]
+    python -m rmpl.benchmarks.halpe26_stats BANK.npz [--mhp DIR]
 
 BANK is a HALPE-26 pose set (``rmpl poses --body anny``): the median and 99th-percentile
 distance of each extra point to a neighbour. ``--mhp DIR``: an ``rmpl generate`` set with
@@ -14,6 +14,7 @@ import argparse
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.mhp import load_mhp
 from rmpl.skeleton import HALPE26
 from rmpl.synth.motion import load_pose_set
@@ -29,11 +30,11 @@ PAIRS = (
 DETECTED = ("left_ankle", "left_heel", "left_big_toe", "left_small_toe", "head_top", "neck")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
     ap.add_argument("--mhp")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     P = load_pose_set(a.bank).poses
     print(f"{a.bank}: {len(P)} poses")
     for j, k in PAIRS:
@@ -48,7 +49,8 @@ def main() -> None:
             ok = d["scores"][..., i] > 0
             px = f"median {np.median(err[..., i][ok]):.1f} px" if ok.any() else "never given"
             print(f"  {name}: given in {100 * ok.mean():.0f}% of views, {px}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -3,7 +3,8 @@
 Speed and people found per frame, per view, for each option (frames are decoded first, so
 the detector's own time is measured; decoding is timed separately):
 
-    python scripts/bench_detect.py speed ../shared/data/pose2sim_videos/Demo_MultiPerson/videos \
+    python -m rmpl.benchmarks.bench_detect speed \
+        ../shared/data/pose2sim_videos/Demo_MultiPerson/videos \
         --frames 100 --options mediapipe,tasks,blazepose-multi,blazepose-multi-static,hog
 
 Options:
@@ -28,7 +29,7 @@ poses.npz, the largest frame-to-frame hip step as an identity-swap check), and p
 2D files for ``rmpl evaluate --dataset recording`` (each holding only the 2D person that
 the track used in each view and frame):
 
-    python scripts/bench_detect.py tracks /tmp/mp_demo --split /tmp/mp_demo_tracks
+    python -m rmpl.benchmarks.bench_detect tracks /tmp/mp_demo --split /tmp/mp_demo_tracks
 """
 
 from __future__ import annotations
@@ -36,11 +37,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from rmpl.benchmarks._common import run_main
+from rmpl.errors import InputError
 
 
 def _frames(video: Path, count: int) -> tuple[list[np.ndarray], float]:
@@ -148,7 +151,7 @@ def _mosaic(views: list, names: list[str]) -> tuple:
 
     parts = [v for v in views if v[0] in names]
     if len(parts) != len(names):
-        sys.exit(f"--mosaic: views {names} not all among {[v[0] for v in views]}")
+        raise InputError(None, "--mosaic", f"views among {[v[0] for v in views]}", names)
     frames = []
     for t in range(min(len(p[1]) for p in parts)):
         canvas = np.zeros((1080, 1920, 3), np.uint8)
@@ -165,7 +168,7 @@ def _mosaic(views: list, names: list[str]) -> tuple:
 def speed(args: argparse.Namespace) -> None:
     videos = sorted(Path(args.videos).glob("*.mp4"))
     if not videos:
-        sys.exit(f"no .mp4 in {args.videos}")
+        raise InputError(args.videos, None, "a folder holding .mp4 videos", "none")
     views = [(v.stem, *_frames(v, args.frames)) for v in videos]
     if args.mosaic:
         views.append(_mosaic(views, args.mosaic.split(",")))
@@ -193,7 +196,7 @@ def tracks(args: argparse.Namespace) -> None:
     run = Path(args.run)
     poses = load_poses(run / "poses.npz")
     if poses.membership is None:
-        sys.exit(f"{run / 'poses.npz'} has no membership (made by an older rmpl)")
+        raise InputError(run / "poses.npz", "membership", "a run's poses (rmpl run)", "none")
     m = poses.membership  # (T, P, V): which 2D person of each view the track used
     T, P, V = m.shape
     report = []
@@ -233,7 +236,7 @@ def tracks(args: argparse.Namespace) -> None:
             print(f"wrote {path}")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = parser.add_subparsers(required=True)
     s = sub.add_parser("speed", help="frames/s and people per frame of each option")
@@ -246,9 +249,10 @@ def main() -> None:
     t.add_argument("run", help="an rmpl run --out folder (poses.npz, keypoints2d.npz)")
     t.add_argument("--split", help="write per-track 2D files (track<p>.npz) here")
     t.set_defaults(fn=tracks)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     args.fn(args)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -6,7 +6,7 @@ seeded, no keypoint removal), so their rows compare like with like.
 With ``--mhp`` the columns are the second validation, on held-out MHP renders with the
 real detector's 2D (runs trained with ``mhp_val``).
 
-Usage: python scripts/runs_table.py RUN_DIR [RUN_DIR ...] [--views 1,2,3,4,5] [--mhp]
+Usage: python -m rmpl.benchmarks.runs_table RUN_DIR [RUN_DIR ...] [--views 1,2,3,4,5] [--mhp]
 """
 
 from __future__ import annotations
@@ -15,20 +15,23 @@ import argparse
 import json
 from pathlib import Path
 
+from rmpl.benchmarks._common import run_main
+from rmpl.errors import InputError
+
 
 def last_record(run: Path) -> dict:
     lines = (run / "log.jsonl").read_text().splitlines()
     if not lines:
-        raise SystemExit(f"{run}/log.jsonl: no validation yet")
+        raise InputError(run / "log.jsonl", None, "a validation record", "none yet")
     return json.loads(lines[-1])
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--views", default="1,2,3,4,5")
     parser.add_argument("--mhp", action="store_true", help="the MHP validation columns")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     pre = "mhp_" if args.mhp else ""
     views = [int(v) for v in args.views.split(",")]
     head = " | ".join(f"{v} views" for v in views)
@@ -48,7 +51,8 @@ def main() -> None:
     key = pre + "triangulation_kpstar_{}v"
     cells = " | ".join(f"{tri[key.format(v)]:.1f}" if key.format(v) in tri else "—" for v in views)
     print(f"| DLT (triangulable joints only) | | | | {cells} |")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

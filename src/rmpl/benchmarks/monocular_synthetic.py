@@ -1,6 +1,6 @@
 """One camera on synthetic sequences: the dev set of rmpl.pipeline.monocular's smoother.
 
-Usage: python scripts/monocular_synthetic.py SEQBANK [--windows 40]
+Usage: python -m rmpl.benchmarks.monocular_synthetic SEQBANK [--windows 40]
 
 Windows of 100 frames of the CMU subjects filmed on a flat floor (02, 07, 08, 13, 14; seed
 [5, 1]), one random camera each, the floor at z = 0; the shipped per-frame lifter, then
@@ -14,6 +14,7 @@ import argparse
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.sequences import SequenceBank, SequenceSource
 from rmpl.evaluate.scoring import pose_metrics
 from rmpl.geometry.camera import Camera, Rig
@@ -24,12 +25,12 @@ from rmpl.pipeline.monocular import MonocularConfig, lift_stretch
 FLAT_FLOOR_SUBJECTS = ["02", "07", "08", "13", "14"]
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
     ap.add_argument("--windows", type=int, default=40)
     ap.add_argument("--cues", default="floor,floor+time,floor+size+time")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     _, held = SequenceBank.load(a.bank).split(FLAT_FLOOR_SUBJECTS)
     T = 100
     b = SequenceSource(held, seed=[5, 1]).batch(a.windows, T, 1, train=False)
@@ -57,7 +58,8 @@ def main() -> None:
             truth.append(b.target[i])
         m = pose_metrics(np.concatenate(preds), np.concatenate(truth).astype(float), range(17))
         print(cues, m)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

@@ -1,4 +1,4 @@
-"""Sweep BlazePoseMulti's options on multi-person scenes of TRAINING subjects (issue 17).
+"""Sweep BlazePoseMulti's options on multi-person scenes of training subjects (not subject 03).
 
 For each setting of :data:`SETTINGS` (keyword arguments of
 :class:`rmpl.synth.detect_multi.BlazePoseMulti`, given as ``GenerateConfig.detector_options``)
@@ -32,9 +32,9 @@ recall replaces the default if its recall exceeds the default's by more than 1 p
 otherwise the default stays. Detection time is reported but is not part of the rule.
 
 Usage (in the repository root, venv active, ``ANNY_CACHE_DIR`` set):
-    nice -n 10 python scripts/detector_sweep.py [--out-root DIR] [--workers 1]
+    nice -n 10 python -m rmpl.benchmarks.detector_sweep [--out-root DIR] [--workers 1]
         [--scenes 50] [--views 5]
-    python scripts/detector_sweep.py --measure DIR [DIR ...]   # figures of existing sets
+    python -m rmpl.benchmarks.detector_sweep --measure DIR [DIR ...]   # figures of existing sets
 """
 
 from __future__ import annotations
@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.scenes import matched_detections
 from rmpl.skeleton import KP_STAR
 from rmpl.synth.generate import GenerateConfig, generate, list_shards
@@ -217,20 +218,20 @@ def breakdown(results: dict[str, dict]) -> str:
     return head + "\n".join(rows)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--out-root", default="/tmp/detector_sweep")
+    ap.add_argument("--out-root", default="detector_sweep", help="where the scene sets go")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--scenes", type=int, default=50)
     ap.add_argument("--views", type=int, default=5)
     ap.add_argument("--measure", nargs="+", help="only report the figures of these scene sets")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.measure:  # the first set is the reference of the others' "common" error
         results = {}
         for d in args.measure:
             results[str(d)] = measure(d, next(iter(results.values()), None))
         print(table(results) + "\n\n" + breakdown(results))
-        return
+        return 0
     results: dict[str, dict] = {}
     for name, options in SETTINGS.items():
         cfg = GenerateConfig.from_dict(
@@ -255,6 +256,7 @@ def main() -> None:
             raise SystemExit(f"{out}: not the scenes of the default setting's set")
     print(table(results) + "\n\n" + breakdown(results))
     print(f"\nselected by the rule: {select(results)}")
+    return 0
 
 
 def _base() -> dict:
@@ -265,4 +267,4 @@ def _base() -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

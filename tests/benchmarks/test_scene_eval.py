@@ -1,22 +1,13 @@
-"""Tests of scripts/scene_eval.py (matching, "seen" and found rates) on fake scene arrays."""
+"""Tests of rmpl.benchmarks.scene_eval (matching, "seen" and found rates) on fake scene arrays."""
 
 from __future__ import annotations
-
-import importlib.util
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from rmpl.benchmarks import scene_eval as se
 from rmpl.errors import InputError
 from rmpl.geometry.camera import look_at
-
-_PATH = Path(__file__).resolve().parents[2] / "scripts" / "scene_eval.py"
-_spec = importlib.util.spec_from_file_location("scene_eval", _PATH)
-se = importlib.util.module_from_spec(_spec)
-sys.modules["scene_eval"] = se  # dataclasses look their module up
-_spec.loader.exec_module(se)
 
 # A standing figure in COCO-17 order (x left, z up), metres.
 _FIGURE = np.array(

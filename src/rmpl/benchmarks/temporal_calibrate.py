@@ -1,6 +1,7 @@
 """Fit a temporal checkpoint's per-view-count error radii on held-out synthetic windows.
 
-Usage: python scripts/temporal_calibrate.py SEQBANK CHECKPOINT [--windows 64] [--mhp DIR ...]
+    python -m rmpl.benchmarks.temporal_calibrate SEQBANK CHECKPOINT [--windows 64] \
+        [--mhp DIR ...]
 
 The same windows and rule as training's last validation (CMU subject 03 held out, the
 temporal detector model of the checkpoint's recipe, seed 12345, 2, 3 and 5 views), the
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import torch
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.sequences import SequenceBank
 from rmpl.inference_temporal import TemporalLifter
 from rmpl.io.atomic import atomic_path
@@ -34,13 +36,13 @@ from rmpl.training.temporal import (
 )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
     ap.add_argument("checkpoint")
     ap.add_argument("--windows", type=int, default=64, help="windows per view count")
     ap.add_argument("--mhp", nargs="+", help="MHP sequence folders to fit on instead")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     torch.set_num_threads(2)
     model, meta = load_temporal(a.checkpoint)
     model.use_onnx()
@@ -68,7 +70,8 @@ def main() -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(meta, indent=2) + "\n")
     print(f"{path}: r50 {calibration.r50}, r90 {calibration.r90}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))

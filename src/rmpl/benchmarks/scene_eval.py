@@ -1,6 +1,6 @@
 """Multi-person MHP scenes: per-person MPJPE and the share of people found, per view subset.
 
-Usage: python scripts/scene_eval.py DIR [--views 4] [--single DIR] [--methods NAME,...]
+Usage: python -m rmpl.benchmarks.scene_eval DIR [--views 4] [--single DIR] [--methods NAME,...]
        [--model default] [--csv FILE]
 
 DIR is a scene set of ``rmpl generate`` (``people = [2, 4]``, e.g. the held-out CMU subject
@@ -46,8 +46,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main, set_rig
 from rmpl.errors import InputError
-from rmpl.geometry.camera import Camera, Rig
+from rmpl.geometry.camera import Rig
 from rmpl.io.keypoints import drop_far_keypoints
 from rmpl.pipeline.association import Association, match_poses
 from rmpl.pipeline.runner import RunConfig, _estimator, associate_frames
@@ -151,13 +152,7 @@ def _as_scenes(d: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def scene_rig(d: dict[str, np.ndarray], m: int, views: tuple[int, ...]) -> Rig:
     """The cameras ``views`` of scene ``m``."""
-    return Rig(
-        tuple(
-            Camera(d["K"][m, v], d["R"][m, v], d["t"][m, v],
-                   size=tuple(int(x) for x in d["size"][m, v]), name=f"cam{v}")
-            for v in views
-        )
-    )  # fmt: skip
+    return set_rig(d, m, views, prefix="cam")
 
 
 # ------------------------------------------------------------------------------- scoring
@@ -428,4 +423,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_main(main))

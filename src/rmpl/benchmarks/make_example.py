@@ -8,7 +8,7 @@ regressed COCO-17 joints. With ``--detector parametric`` the mocap joints go thr
 detector-noise model instead. The example holds the calibration (rmpl TOML), the 2D
 detections (rmpl JSON) and the 3D ground truth (NPZ).
 
-    ANNY_CACHE_DIR=~/.cache/rmpl/anny python scripts/make_example.py \
+    ANNY_CACHE_DIR=~/.cache/rmpl/anny python -m rmpl.benchmarks.make_example \
         --poses ../shared/data/cmu_mocap --out src/rmpl/examples/walk
 """
 
@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rmpl.benchmarks._common import run_main
+from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig, rodrigues
 from rmpl.io.atomic import atomic_path
 from rmpl.io.calibration import save_rig
@@ -28,7 +30,7 @@ from rmpl.synth.motion import load_motion_dir
 from rmpl.synth.noise import detect_like
 
 
-def main(argv=None) -> int:
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--poses", required=True, help="CMU motion folder")
     p.add_argument("--out", type=Path, default=Path("src/rmpl/examples/walk"))
@@ -42,7 +44,7 @@ def main(argv=None) -> int:
     bank = load_motion_dir(args.poses, subjects=["03"], fps=args.fps, min_move=0.0)
     keep = np.array([args.clip in c for c in bank.clip])
     if not keep.any():
-        raise SystemExit(f"clip {args.clip} not found; clips: {sorted(set(bank.clip))[:10]}")
+        raise InputError(None, "--clip", f"one of {sorted(set(bank.clip))[:10]}", args.clip)
     poses = bank.poses[keep][: args.frames].astype(float)  # (T, 17, 3)
     # Centre the walk in the room and turn it.
     centre = poses[:, 11:13].mean((0, 1))
@@ -147,4 +149,4 @@ def render_and_detect(args, poses: np.ndarray, frames: np.ndarray, rig: Rig, rng
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_main(main))

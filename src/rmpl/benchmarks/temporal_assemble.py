@@ -1,6 +1,6 @@
-"""Ways to assemble a temporal model's answer, on synthetic windows (the session-6 choice).
+"""Ways to assemble a temporal model's answer, on synthetic windows (the shipped choice).
 
-Usage: python scripts/temporal_assemble.py SEQBANK [MODEL] [--seed 12345] [--windows 64]
+Usage: python -m rmpl.benchmarks.temporal_assemble SEQBANK [MODEL] [--seed 12345] [--windows 64]
 
 For 2, 3 and 5 views, on windows of held-out motion (CMU subject 03, the temporal detector
 model; seed 12345 = the validation windows the rule used, 777 = the evaluation windows),
@@ -19,14 +19,19 @@ The filters are rmpl run's defaults (rmpl.pipeline.runner.smooth), cut-off min(6
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from rmpl.benchmarks._common import run_main
 from rmpl.data.sequences import SequenceBank, SequenceSource
 from rmpl.pipeline.runner import RunConfig, smooth
 from rmpl.skeleton import KP_STAR
 from rmpl.training.temporal import load_temporal
+
+#: The shipped COCO-17 temporal model (``--model temporal``).
+SHIPPED = Path(__file__).resolve().parents[1] / "weights" / "temporal"
 
 
 def filtered(X: np.ndarray, times: np.ndarray) -> np.ndarray:
@@ -38,19 +43,15 @@ def filtered(X: np.ndarray, times: np.ndarray) -> np.ndarray:
     return out
 
 
-def main() -> None:
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from temporal_synthetic import dlt_filtered
+def main(argv: list[str] | None = None) -> int:
+    from rmpl.benchmarks.temporal_synthetic import dlt_filtered
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("bank")
-    ap.add_argument("model", nargs="?", default="src/rmpl/weights/temporal")
+    ap.add_argument("model", nargs="?", default=str(SHIPPED), help="a temporal checkpoint")
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--windows", type=int, default=64)
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     torch.set_num_threads(2)
     _, val = SequenceBank.load(a.bank).split(["03"])
     m = load_temporal(a.model)[0]
@@ -84,7 +85,8 @@ def main() -> None:
             print(f"| {v} | {name} | " + " | ".join(f"{c:.1f}" for c in cells) + " |")
     print("mean over 2, 3, 5 views, all joints:",
           ", ".join(f"{k} {np.mean(x):.1f}" for k, x in means.items()))  # fmt: skip
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_main(main))
