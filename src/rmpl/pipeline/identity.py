@@ -10,9 +10,9 @@ speeds are physical limits):
 1. **Duplicates.** Two fragments present in the same frames whose torso centres (the mean
    of shoulders and hips) stay closer than ``duplicate_distance`` x the body height (median
    over the shared frames) are one person seen twice: two people's torsos cannot come that
-   close (an adult's chest depth is about 0.13 of the stature). The shorter fragment is
-   merged into the longer: its frames where the longer one is absent join it, the shared
-   ones are dropped.
+   close (an adult's chest depth is roughly 0.13-0.15 of the stature in anthropometric
+   surveys, e.g. ANSUR II). The shorter fragment is merged into the longer: its frames
+   where the longer one is absent join it, the shared ones are dropped.
 2. **Re-linking across gaps.** A fragment that ends and one that starts later are the same
    person when (a) the distance between where the first was last seen and where the second
    appears is reachable: at most ``position_slack`` x the height plus ``max_speed`` (m/s)
