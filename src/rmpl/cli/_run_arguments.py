@@ -61,6 +61,13 @@ def _add_tracking_arguments(parser: argparse.ArgumentParser) -> None:
         help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
     )
     parser.add_argument(
+        "--people",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="how many people were filmed, when known: shorter tracks join the others or go",
+    )
+    parser.add_argument(
         "--duplicate-tolerance",
         type=_tolerance,
         default=DUPLICATE_TOLERANCE,
@@ -91,6 +98,14 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         help="one TRC + C3D per person in OUT/pose-3d/ for Pose2Sim/OpenSim (Pose2Sim's "
         "COCO_17 or HALPE_26 marker names, by the model's joint set): in Pose2Sim's Y-up axes "
         "(default), the world's Z-up axes, or off",
+    )
+    parser.add_argument(
+        "--pose2sim-min-frames",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="people in fewer frames get no TRC + C3D of their own in pose-3d/ (they stay in "
+        "the other exports; default: one second of frames)",
     )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(

@@ -57,6 +57,7 @@ import numpy as np
 
 from rmpl.cli._run_arguments import add_run_arguments, formats_of
 from rmpl.pipeline.association import AssociationConfig
+from rmpl.pipeline.identity import IdentityConfig
 
 log = logging.getLogger(__name__)
 
@@ -119,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
         association=AssociationConfig(duplicate_tolerance=args.duplicate_tolerance),
+        identity=IdentityConfig(people=args.people),
     )
     _warn_unused_filter(args)
     poses, floor, single = estimate_poses(inputs, cfg, args.floor, auto_model=auto_model)
@@ -136,5 +138,6 @@ def run(args: argparse.Namespace) -> int:
         poses, inputs, out, formats, pictures=not args.no_pictures, overlays=overlays,
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
         up=None if up is None else np.asarray(up, float), floor=floor,
+        pose2sim_min_frames=args.pose2sim_min_frames,
     )  # fmt: skip
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)
