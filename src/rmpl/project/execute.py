@@ -225,31 +225,42 @@ def _inline(jobs, bar) -> list[TrialResult]:
 
 
 def _start_ray(address: str | None, workers: int | None, cpus_per_trial: float):
-    """Connect to the cluster at ``address`` or start a local Ray; the workers import rmpl
-    from where this process does (when that path exists on them)."""
+    """Ray, connected: the running instance of this process, the cluster at ``address``, or
+    a local Ray started here. Returns (the ray module, whether this call started it)."""
     try:
         import ray
     except ModuleNotFoundError:
         raise InputError(None, "--address" if address else None, "Ray installed to run trials "
                          "as Ray tasks: pip install 'rmpl[ray]' (or give --no-ray)",
                          "no module ray") from None  # fmt: skip
+    if ray.is_initialized():
+        return ray, False
+    if address:
+        ray.init(address=address, log_to_driver=False)
+    else:
+        cpus = (workers or os.cpu_count() or 1) * cpus_per_trial
+        ray.init(num_cpus=max(1, round(cpus)), include_dashboard=False, log_to_driver=False)
+    return ray, True
+
+
+def _runtime_env() -> dict:
+    """The tasks' environment: rmpl imported from where this process imports it (when that
+    path exists on the worker's machine), before the worker's own PYTHONPATH."""
     import rmpl
 
     here = str(Path(rmpl.__file__).resolve().parents[1])
-    path = os.pathsep.join([here, *filter(None, [os.environ.get("PYTHONPATH")])])
-    kwargs = {"log_to_driver": False, "runtime_env": {"env_vars": {"PYTHONPATH": path}}}
-    if address:
-        ray.init(address=address, **kwargs)
-    else:
-        cpus = (workers or os.cpu_count() or 1) * cpus_per_trial
-        ray.init(num_cpus=max(1, round(cpus)), include_dashboard=False, **kwargs)
-    return ray
+    given = [os.path.abspath(p) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    path = os.pathsep.join(dict.fromkeys([here, *given]))
+    return {"env_vars": {"PYTHONPATH": path}}
 
 
 def _on_ray(jobs, bar, address, workers, cpus_per_trial) -> list[TrialResult]:
-    ray = _start_ray(address, workers, cpus_per_trial)
+    ray, started = _start_ray(address, workers, cpus_per_trial)
     try:
-        task = ray.remote(num_cpus=cpus_per_trial, max_retries=0)(run_trial)
+        options = {"num_cpus": cpus_per_trial, "max_retries": 0}
+        if address:  # a local Ray's workers have this process' environment already
+            options["runtime_env"] = _runtime_env()
+        task = ray.remote(**options)(run_trial)
         if workers is None:
             workers = max(1, int(ray.cluster_resources().get("CPU", 1) // cpus_per_trial))
         log.info("Ray: %d trials, at most %d at once, %g CPU each (%s)", len(jobs), workers,
@@ -273,4 +284,5 @@ def _on_ray(jobs, bar, address, workers, cpus_per_trial) -> list[TrialResult]:
             _say(bar, r)
         return results
     finally:
-        ray.shutdown()
+        if started:
+            ray.shutdown()

@@ -298,7 +298,9 @@ def pose2sim_settings(paths: list[Path]) -> Pose2SimSettings:
     where = paths[-1] if paths else Path(POSE2SIM_CONFIG)
     s = Pose2SimSettings()
     rate = project.get("frame_rate", "auto")
-    if isinstance(rate, int | float) and not isinstance(rate, bool):
+    if not (rate == "auto" or isinstance(rate, int | float) and not isinstance(rate, bool)):
+        raise InputError(where, "project.frame_rate", "a frame rate > 0 or 'auto'", rate)
+    if rate != "auto":
         if not rate > 0:
             raise InputError(where, "project.frame_rate", "a frame rate > 0 or 'auto'", rate)
         s.fps = float(rate)
