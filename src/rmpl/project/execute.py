@@ -20,6 +20,7 @@ import contextlib
 import json
 import logging
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -56,6 +57,9 @@ class TrialResult:
     log: Path | None = None
 
 
+_ERROR = re.compile(r"^rmpl(?: run)?: error: (.*)$")
+
+
 class _Tee:
     """A text stream that writes to a file and keeps ``rmpl``'s error line."""
 
@@ -64,8 +68,8 @@ class _Tee:
 
     def write(self, text: str) -> int:
         for line in text.splitlines():
-            if line.startswith("rmpl run: error: "):
-                self.error = line[len("rmpl run: error: ") :]
+            if m := _ERROR.match(line):
+                self.error = m.group(1)
         return self.stream.write(text)
 
     def flush(self) -> None:
@@ -110,6 +114,8 @@ def run_trial(argv: list[str], log_path: str, stamp: dict) -> dict:
         try:
             with contextlib.redirect_stdout(f), contextlib.redirect_stderr(err):
                 code = main(argv)
+        except SystemExit as e:  # argparse refused an option (usage on the log)
+            code = e.code if isinstance(e.code, int) else 2
         except Exception as e:  # an error rmpl run did not expect: this trial fails, not the batch
             code, err.error = 1, f"{type(e).__name__}: {e} (see {log_path})"
             log.debug("trial failed", exc_info=True)
@@ -239,7 +245,12 @@ def _start_ray(address: str | None, workers: int | None, cpus_per_trial: float):
         ray.init(address=address, log_to_driver=False)
     else:
         cpus = (workers or os.cpu_count() or 1) * cpus_per_trial
-        ray.init(num_cpus=max(1, round(cpus)), include_dashboard=False, log_to_driver=False)
+        ray.init(
+            address="local",
+            num_cpus=max(1, round(cpus)),
+            include_dashboard=False,
+            log_to_driver=False,
+        )  # fmt: skip (a new local Ray, not one running here)
     return ray, True
 
 

@@ -202,7 +202,7 @@ def add_run_options(group) -> None:
         if _flag(a):
             kwargs["action"] = "store_true"
         else:
-            kwargs.update(nargs=a.nargs, choices=a.choices, metavar=a.metavar or dest.upper())
+            kwargs.update(nargs=a.nargs, choices=a.choices, metavar=a.metavar)
         group.add_argument(*a.option_strings, **kwargs)
 
 
