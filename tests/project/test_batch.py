@@ -107,3 +107,19 @@ def test_command(walk_project, tmp_path, capsys):
     assert "trial t2 failed" in capsys.readouterr().err
     assert main(["batch", str(tmp_path / "nothing"), "--no-ray"]) == 2
     assert main([*argv, "--fps", "-1"]) == 2
+
+
+def test_pose2sim_config_in_the_summary(walk_project, tmp_path):
+    (walk_project / "Config.toml").write_text(
+        "[project]\nparticipant_height = 1.7\nparticipant_mass = 65.0\n"
+        "exclude_from_batch = ['t2']\n"
+    )
+    out = tmp_path / "out"
+    results = {r.plan.name: r for r in _run(walk_project, out)}
+    assert results["t1"].status == "done" and results["t2"].status == "excluded"
+    assert not (out / "t2").exists()
+    rows = {r["trial"]: r for r in json.loads((out / "summary.json").read_text())["trials"]}
+    assert rows["t1"]["given_heights_m"] == [1.7] and rows["t1"]["given_masses_kg"] == [65.0]
+    assert len(rows["t1"]["heights_m"]) == 1 and rows["t1"]["heights_m"][0] > 1.0
+    assert any("participant height" in n for n in rows["t1"]["notes"])
+    assert batch_exit_code(list(results.values())) == 0
