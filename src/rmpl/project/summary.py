@@ -87,11 +87,11 @@ def summary_rows(results: list[TrialResult], out: Path) -> list[dict]:
     return rows
 
 
-def _cell(value) -> str:
+def _cell(value, spec: str = "g") -> str:
     if value is None:
         return "-"
     if isinstance(value, list):
-        return ", ".join("-" if v is None else f"{v:g}" for v in value) or "-"
+        return ", ".join("-" if v is None else format(v, spec) for v in value) or "-"
     return str(value)
 
 
@@ -105,7 +105,7 @@ def _markdown(rows: list[dict], title: str) -> str:
             if r["reprojection_px"] is None
             else f"{r['reprojection_px']:.1f} ({_cell(r['reprojection_mm'])})"
         )
-        heights = _cell(r["heights_m"]) + (
+        heights = _cell(r["heights_m"], ".2f") + (
             f" ({_cell(r['given_heights_m'])})" if r["given_heights_m"] else ""
         )
         cells = [r["trial"], r["status"], _cell(r["people"]), _cell(r["frames"]), rep,
@@ -137,7 +137,7 @@ def _html(rows: list[dict], title: str) -> str:
         )
         keys = ["trial", "status", "people", "frames", "reprojection_px", "reprojection_mm",
                 "view_check", "heights_m", "given_heights_m", "seconds"]  # fmt: skip
-        cells = [_cell(r[k]) for k in keys]
+        cells = [_cell(r[k], ".2f" if k == "heights_m" else "g") for k in keys]
         tds = "".join(f"<td>{html.escape(c)}</td>" for c in cells)
         bad = ' class="bad"' if r["status"] == "failed" else ""
         body.append(f"<tr{bad}>{tds}<td>{links}</td><td>{html.escape(r['error'] or '')}</td></tr>")
