@@ -121,3 +121,15 @@ def test_output_folder_inside_the_project_is_not_a_trial(tmp_path):
     _touch(root / "walk" / "keypoints.json", "{}")
     _touch(root / "out" / "walk" / "report.json", "{}")
     assert [t.name for t in find_trials(root, skip=[root / "out"])] == ["walk"]
+
+
+def test_rmpl_outputs_are_not_inputs(tmp_path):
+    """A one-trial folder with its default output folder inside: the second run sees the
+    same inputs."""
+    root = tmp_path / "walk"
+    _touch(root / "calibration" / "rig.toml", "x")
+    _touch(root / "keypoints.json", "{}")
+    _touch(root / "rmpl-out" / "summary.json", "{}")
+    _touch(root / "rmpl-out" / "walk" / "report.json", "{}")
+    (t,) = find_trials(root)
+    assert t.folder == root and t.inputs == [root / "keypoints.json"]

@@ -90,8 +90,15 @@ def _image_dirs(folder: Path) -> list[Path]:
     return [d for d in _visible_dirs(folder) if _files(d, IMAGE_SUFFIXES)]
 
 
+def _is_output(folder: Path) -> bool:
+    """An output folder of rmpl (a run's or a batch's), never an input."""
+    return any(
+        (folder / n).is_file() for n in ("summary.json", "report.json", ".rmpl-outputs.json")
+    )
+
+
 def _json_dirs(folder: Path) -> list[Path]:
-    return [d for d in _visible_dirs(folder) if _files(d, (".json",))]
+    return [d for d in _visible_dirs(folder) if _files(d, (".json",)) and not _is_output(d)]
 
 
 def _pose2sim_inputs(folder: Path) -> tuple[str, list[Path], str] | None:
@@ -189,7 +196,7 @@ def _walk(folder: Path, root: Path, skip: set[Path], depth: int) -> list[Trial]:
         return [_trial(folder, root)]
     found: list[Trial] = []
     for d in _visible_dirs(folder) if depth > 0 else []:
-        if d.name not in _NOT_INPUTS and d.resolve() not in skip:
+        if d.name not in _NOT_INPUTS and d.resolve() not in skip and not _is_output(d):
             found += _walk(d, root, skip, depth - 1)
     if found:
         return found
