@@ -98,6 +98,11 @@ def run(args: argparse.Namespace) -> int:
     plans = plan_project(project, out, given_run_options(args))
     if args.dry_run:
         return _dry_run(plans)
+    ray_only = [o for o, v in [("--address", args.address), ("--workers", args.workers),
+                               ("--cpus-per-trial", args.cpus_per_trial != 1.0)] if v]  # fmt: skip
+    if args.no_ray and ray_only:
+        log.warning("WARNING: %s not used: --no-ray runs the trials one after another here",
+                    ", ".join(ray_only))  # fmt: skip
     for p in plans:
         for note in p.notes:
             log.info("%s: %s", p.name, note)
