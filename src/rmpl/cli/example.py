@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rmpl.cli._common import MODEL_HELP
+from rmpl.models import MODEL_HELP
 
 log = logging.getLogger(__name__)
 
