@@ -60,7 +60,7 @@ def unused_options(
     """
     temporal = False
     if args.method == "rmpl" and args.model is not None:
-        from rmpl.inference_temporal import is_temporal_checkpoint
+        from rmpl.models import is_temporal_checkpoint
 
         temporal = is_temporal_checkpoint(args.model)
     lines = _filter_lines(args, temporal)
