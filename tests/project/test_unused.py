@@ -52,3 +52,19 @@ def test_fps_when_the_input_states_its_own():
     (line,) = unused_options(args, input_fps=60.0)
     assert "--fps 30" in line and "60" in line
     assert unused_options(args, input_fps=30.0) == []
+
+
+def test_rmpl_run_says_it(tmp_path, caplog):
+    """The hook in rmpl run: a fast triangulation run given a model it does not use."""
+    import logging
+
+    from rmpl.cli import main
+    from tests.project.conftest import WALK
+
+    argv = ["run", "--calib", str(WALK / "calibration.toml"), "--keypoints",
+            str(WALK / "keypoints.json"), "--out", str(tmp_path / "out"), "--method",
+            "triangulate", "--model", "floor26", "--no-pictures", "--formats", "npz",
+            "--pose2sim", "off"]  # fmt: skip
+    with caplog.at_level(logging.WARNING):
+        assert main(argv) == 0
+    assert any("--model not used" in r.getMessage() for r in caplog.records)
