@@ -130,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     work, extra = args.work, list(args.run_options)
+    for name in ("out", "out-damaged", "out-cluster"):  # every step starts from nothing
+        shutil.rmtree(work / name, ignore_errors=True)
     project = work / "project"
     trials = build_project(project, args.videos, args.keypoints)
     rows = ["| step | wall s | exit | trials |", "|---|---|---|---|"]
