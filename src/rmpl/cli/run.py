@@ -67,18 +67,6 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run)
 
 
-def _warn_unused_filter(args: argparse.Namespace) -> None:
-    """--filter / --cutoff set away from their defaults do nothing with the temporal model."""
-    from rmpl.models import is_temporal_checkpoint
-
-    changed = args.filter != "butterworth" or args.cutoff != 6.0
-    if changed and args.method == "rmpl" and is_temporal_checkpoint(args.model):
-        log.warning(
-            "--filter / --cutoff do not apply to the temporal model (it filters with rmpl "
-            "run's defaults); give --model default to filter per-frame answers your way"
-        )
-
-
 def _log_uncertainty(poses) -> None:
     """The temporal model's predicted error radius, in one line."""
     if poses.uncertainty is None or not np.isfinite(poses.uncertainty).any():
@@ -103,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from rmpl.pipeline.job import estimate_poses
     from rmpl.pipeline.outputs import write_all, write_input_overlays
     from rmpl.pipeline.runner import RunConfig
+    from rmpl.project.unused import warn_unused_options
 
     formats = formats_of(args.formats)
     out = Path(args.out)
@@ -122,7 +111,7 @@ def run(args: argparse.Namespace) -> int:
         association=AssociationConfig(duplicate_tolerance=args.duplicate_tolerance),
         identity=IdentityConfig(people=args.people),
     )
-    _warn_unused_filter(args)
+    warn_unused_options(args, inputs.fps, auto_model)  # said, never dropped in silence
     poses, floor, single = estimate_poses(inputs, cfg, args.floor, auto_model=auto_model)
     check_estimated(poses, args, args.method)
     log_joint_sets(inputs.skeleton, poses.skeleton)
