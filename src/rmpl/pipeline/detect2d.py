@@ -95,11 +95,26 @@ def _blazepose_multi(**kwargs):
     return BlazePoseMulti(**kwargs)
 
 
+def _movenet(**kwargs):
+    from rmpl.synth.detect_movenet import MoveNet
+
+    return MoveNet(**kwargs)
+
+
+def _movenet_blazepose(**kwargs):
+    from rmpl.synth.detect_movenet import MoveNetBlazePose
+
+    return MoveNetBlazePose(**kwargs)
+
+
 #: Detector factories by name, for ``rmpl run --detector`` (imported when called).
 DETECTORS: dict[str, Callable[[], object]] = {
     "blazepose-multi": _blazepose_multi,
     "blazepose-multi-static": functools.partial(_blazepose_multi, track=False),
     "mediapipe": _mediapipe,
+    "movenet": _movenet,
+    "movenet-blazepose": _movenet_blazepose,
+    "movenet-blazepose-static": functools.partial(_movenet_blazepose, track=False),
 }
 #: The detector of ``rmpl run --videos/--images``, chosen by measurement
 #: (``scripts/bench_detect.py``; docs/results.md).
