@@ -141,6 +141,7 @@ class MoveNet:
 
     name = "movenet"
     skeleton = COCO17
+    track = False  # every image afresh: nothing to follow, :meth:`reset` does nothing
 
     def __init__(
         self,
@@ -161,6 +162,9 @@ class MoveNet:
         self._net = _interpreter(read_model(model_path), threads)
         self._shape: tuple[int, int] | None = None
         self.calls = 0  # network runs, for benchmarks
+
+    def reset(self) -> None:
+        """Nothing to forget (every image is detected afresh)."""
 
     def close(self) -> None:
         self._net = None
