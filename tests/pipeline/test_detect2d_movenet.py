@@ -93,3 +93,22 @@ def test_nobody_anywhere_is_an_input_error(tmp_path):
     folders = [_folder(tmp_path / f"cam{v}", blank) for v in range(2)]
     with pytest.raises(InputError, match="nobody in any frame"):
         detect2d.detect_images(folders, "movenet-blazepose", progress=False)
+
+
+def test_views_in_parallel_on_ray_equal_one_after_the_other(tmp_path, scene):
+    pytest.importorskip("ray")
+    import ray
+
+    images, _ = scene
+    folders = [_folder(tmp_path / "cam0", images), _folder(tmp_path / "cam1", images[::-1])]
+    serial = detect2d.detect_images(folders, "movenet", progress=False)
+    started = ray.is_initialized()
+    try:
+        parallel = detect2d.detect_images(folders, "movenet", progress=False, workers=2)
+    finally:
+        if not started:
+            ray.shutdown()
+    np.testing.assert_array_equal(parallel.keypoints, serial.keypoints)
+    np.testing.assert_array_equal(parallel.scores, serial.scores)
+    with pytest.raises(ValueError, match="detector name"):
+        detect2d.detect_images(folders, object(), progress=False, workers=2)
