@@ -117,7 +117,7 @@ DETECTORS: dict[str, Callable[[], object]] = {
     "movenet-blazepose-static": functools.partial(_movenet_blazepose, track=False),
 }
 #: The detector of ``rmpl run --videos/--images``, chosen by measurement
-#: (``scripts/bench_detect.py``; docs/results.md).
+#: (``rmpl.benchmarks.bench_detect``; docs/results.md).
 DEFAULT_DETECTOR = "blazepose-multi"
 
 

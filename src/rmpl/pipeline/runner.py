@@ -312,7 +312,7 @@ def estimate(
 def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = None):
     """The floor under a run's own people: each associated person of each frame
     triangulated (DLT, the joints two or more views see), then
-    :func:`rmpl.pipeline.monocular.floor_from_poses` (the lowest ankle of every pose that
+    :func:`rmpl.pipeline.depth_cues.floor_from_poses` (the lowest ankle of every pose that
     may touch the floor).
 
     Args:
@@ -330,7 +330,7 @@ def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = 
 
     from rmpl.geometry.triangulate import triangulate
     from rmpl.inference import estimate_up
-    from rmpl.pipeline.monocular import floor_from_poses
+    from rmpl.pipeline.depth_cues import floor_from_poses
 
     found = [a for a in people if len(a)]
     if not found:
@@ -710,17 +710,9 @@ def run_with_floor(
         tracks, uncertainty, views, ids, interpolated, index, skeleton, floor = answer
         membership, excluded = view_records(people, index, present)
     else:
-        lifter = _lifter(cfg)
-        reads = lifter is not None and lifter.reads_floor
-        floor = _run_floor(floor, people, rig, cfg, reads)
-        fn = _estimator(cfg, used=True, joints=joints, floor=floor, lifter=lifter)
-        skeleton = fn.skeleton or input_skeleton(keypoints.shape[-2], joints)
-        pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
-        tracks, views, ids, index = _track(pts, nv, cfg)
-        membership, excluded = view_records(people, index, present, nv, used)
-        interpolated = np.zeros(tracks.shape[:-1], bool)
-        if temporal:
-            tracks, interpolated = smooth(tracks, fps, cfg)
+        j2d = keypoints.shape[-2]
+        answer = _per_frame(people, present, rig, fps, cfg, temporal, progress, joints, floor, j2d)
+        tracks, views, ids, interpolated, membership, excluded, skeleton, floor = answer
     ok = np.isfinite(tracks).all(-1)
     source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))
@@ -740,6 +732,25 @@ def run_with_floor(
         camera_names=rig.names,
     )
     return poses, floor
+
+
+def _per_frame(people, present, rig: Rig, fps, cfg: RunConfig, temporal, progress, joints,
+               floor, j2d: int):  # fmt: skip
+    """:func:`run_with_floor` with a per-frame estimator: estimate, track, then (``temporal``)
+    smooth (``j2d``: the 2D's joint count). Returns tracks, views, ids, interpolated,
+    membership, views excluded, the answer's joint set and the floor the estimator read."""
+    lifter = _lifter(cfg)
+    reads = lifter is not None and lifter.reads_floor
+    floor = _run_floor(floor, people, rig, cfg, reads)
+    fn = _estimator(cfg, used=True, joints=joints, floor=floor, lifter=lifter)
+    skeleton = fn.skeleton or input_skeleton(j2d, joints)
+    pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
+    tracks, views, ids, index = _track(pts, nv, cfg)
+    membership, excluded = view_records(people, index, present, nv, used)
+    interpolated = np.zeros(tracks.shape[:-1], bool)
+    if temporal:
+        tracks, interpolated = smooth(tracks, fps, cfg)
+    return tracks, views, ids, interpolated, membership, excluded, skeleton, floor
 
 
 def _lifter(cfg: RunConfig):
