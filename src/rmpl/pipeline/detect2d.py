@@ -5,16 +5,24 @@ generator also uses), so any detector that follows it plugs in: a single-person 
 (B, J, 2) output gets a people axis of 1, or a :class:`rmpl.synth.detect.MultiPersonDetector`
 with (B, N, J, 2). :data:`DETECTORS` names the ones ``rmpl run --detector`` offers:
 
-- ``blazepose-multi`` (the default, :data:`DEFAULT_DETECTOR`): BlazePose's own person
-  detector and landmark network (shipped in the ``mediapipe==0.10.14`` wheel) for up to 4
-  people per frame, each followed from frame to frame
-  (:class:`rmpl.synth.detect_multi.BlazePoseMulti`); frames of a view are fed in order.
+- ``movenet-blazepose`` (the default, :data:`DEFAULT_DETECTOR`): Google's MoveNet
+  MultiPose Lightning (shipped with rmpl, Apache-2.0, run on LiteRT) finds up to 6 people
+  per frame, and BlazePose's full landmark network draws each of them in a crop, feet
+  included, followed from frame to frame
+  (:class:`rmpl.synth.detect_movenet.MoveNetBlazePose`); frames of a view are fed in order.
+- ``movenet-blazepose-static``: the same, every frame detected afresh.
+- ``movenet``: MoveNet alone, COCO-17 (no feet), every frame afresh.
+- ``blazepose-multi``: BlazePose's own person detector and landmark network (shipped in
+  the ``mediapipe==0.10.14`` wheel) for up to 4 people per frame, each followed from frame
+  to frame (:class:`rmpl.synth.detect_multi.BlazePoseMulti`; the default before
+  ``movenet-blazepose``).
 - ``blazepose-multi-static``: the same, every frame detected afresh (slower).
 - ``mediapipe``: MediaPipe's legacy ``Pose`` solution, one person per frame and view,
   every frame afresh, as in the training data of the shipped lifter.
 
 Videos are read with OpenCV (``cv2``, which comes with mediapipe); nothing is downloaded.
-Install both with ``pip install 'rmpl[detect]'``.
+Install them (and LiteRT, ``ai-edge-litert``, for MoveNet) with ``pip install 'rmpl[detect]'``.
+With ``workers`` > 1 the cameras are detected in parallel on a local Ray instance.
 
 The result is a :class:`rmpl.io.keypoints.Keypoints2D` with ``P`` = the most people any
 view had in a frame (at least 1; a person's index in one view says nothing about the same
