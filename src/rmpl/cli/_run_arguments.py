@@ -116,8 +116,10 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--detector",
         default=None,
-        help="videos/images: 2D detector: blazepose-multi (default: up to 4 people per view, "
-        "followed over frames), blazepose-multi-static, mediapipe (one person, MediaPipe's "
+        help="videos/images: 2D detector: movenet-blazepose (default: MoveNet finds up to 6 "
+        "people per view, BlazePose draws each with heels and toes, followed over frames), "
+        "movenet-blazepose-static, movenet (COCO-17, no feet), blazepose-multi (the former "
+        "default, up to 4 people), blazepose-multi-static, mediapipe (one person, MediaPipe's "
         "legacy Pose)",
     )
 

@@ -6,9 +6,10 @@ triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D, BVH) and pictu
 overlays overlay_<camera>.mp4 or overlay_<camera>/).
 
 From videos (--videos, one synchronised video per camera) or image folders (--images, one
-folder of frames per camera, image i of each folder = frame i): BlazePose's networks
-(needs rmpl[detect]) find up to 4 people per frame and view and follow them over frames
-(--detector mediapipe: one person, MediaPipe's legacy Pose). The videos must have the same
+folder of frames per camera, image i of each folder = frame i): MoveNet MultiPose finds up
+to 6 people per frame and view, BlazePose's landmark network draws each (feet included) and
+follows them over frames (needs rmpl[detect]; --detector blazepose-multi: the former
+detector; mediapipe: one person, MediaPipe's legacy Pose). The videos must have the same
 number of frames and frame rate; the cameras of --calib are matched to the videos by name
 (file name without suffix = camera name) or else by order. The 2D detections are cached in
 OUT/keypoints2d.npz with a fingerprint of the inputs (names, sizes, modification times) in
