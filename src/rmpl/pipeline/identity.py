@@ -430,7 +430,8 @@ def resolve(
 def view_counts(people, poses_per_frame: list[np.ndarray], rig) -> tuple[list, list]:
     """For :func:`resolve`'s ghost rule: per frame and person, the views that detect it
     (views with a keypoint of score > 0) and the cameras whose image holds its torso centre
-    (in front of the camera, inside the image; cameras of unknown size never count).
+    (in front of the camera, inside the image; cameras of unknown size never count, nor a
+    camera that detects nobody in that frame: a blind view is no evidence of a ghost).
 
     Args:
         people: per frame an object with ``scores`` (N, V, J) (an
@@ -452,5 +453,6 @@ def view_counts(people, poses_per_frame: list[np.ndarray], rig) -> tuple[list, l
         depth = np.einsum("vij,nj->vni", rig.R, c)[..., 2] + rig.t[:, None, 2]
         with np.errstate(invalid="ignore"):
             inside = ((uv >= 0) & (uv < sizes[:, None])).all(-1) & (depth > 0)
+        inside &= (np.asarray(a.scores) > 0).any(-1).any(0)[:, None]  # views that see someone
         cameras.append(np.where(ok, inside.sum(0), 0))
     return views, cameras
