@@ -719,7 +719,8 @@ def _identity_lines(rec: dict) -> list[str]:
         text = _MERGE_TEXT.get(kind, kind).format_map(_Blank({k: _cell(v) for k, v in m.items()}))
         md.append(f"- fragment {m['fragment']} -> person {owner.get(m['into'], '-')}: {text}")
     for d in rec["drops"]:
-        md.append(f"- fragment {d['fragment']} dropped ({d['kind']}, {d['frames']} frames): "
+        md.append(f"- fragment {d['fragment']} dropped ({d['kind']}, {d['frames']} "
+                  f"frame{'' if d['frames'] == 1 else 's'}): "
                   f"{d['reason']}")  # fmt: skip
     return md
 
