@@ -21,7 +21,8 @@ cv2 = pytest.importorskip("cv2")
 
 def test_registry_names_every_detector_and_the_old_one_stays():
     for name in ("movenet", "movenet-blazepose", "movenet-blazepose-static",
-                 "blazepose-multi", "blazepose-multi-static", "mediapipe"):  # fmt: skip
+                 "movenet-blazepose-fast", "blazepose-multi", "blazepose-multi-static",
+                 "mediapipe"):  # fmt: skip
         assert name in DETECTORS
     assert DEFAULT_DETECTOR in DETECTORS
     with pytest.raises(ValueError, match="detector must be one of"):

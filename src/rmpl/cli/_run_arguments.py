@@ -118,7 +118,8 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="videos/images: 2D detector: movenet-blazepose (default: MoveNet finds up to 6 "
         "people per view, BlazePose draws each with heels and toes, followed over frames), "
-        "movenet-blazepose-static, movenet (COCO-17, no feet), blazepose-multi (the former "
+        "movenet-blazepose-static, movenet-blazepose-fast (MoveNet every 5th frame while "
+        "everyone is followed), movenet (COCO-17, no feet), blazepose-multi (the former "
         "default, up to 4 people), blazepose-multi-static, mediapipe (one person, MediaPipe's "
         "legacy Pose)",
     )

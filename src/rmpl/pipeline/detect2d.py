@@ -11,6 +11,9 @@ with (B, N, J, 2). :data:`DETECTORS` names the ones ``rmpl run --detector`` offe
   included, followed from frame to frame
   (:class:`rmpl.synth.detect_movenet.MoveNetBlazePose`); frames of a view are fed in order.
 - ``movenet-blazepose-static``: the same, every frame detected afresh.
+- ``movenet-blazepose-fast``: the same, MoveNet run every 5th frame while everyone is
+  followed (at once where someone is lost): about half the CPU time per frame, a person
+  who walks in found up to 4 frames late.
 - ``movenet``: MoveNet alone, COCO-17 (no feet), every frame afresh.
 - ``blazepose-multi``: BlazePose's own person detector and landmark network (shipped in
   the ``mediapipe==0.10.14`` wheel) for up to 4 people per frame, each followed from frame
@@ -123,6 +126,7 @@ DETECTORS: dict[str, Callable[[], object]] = {
     "movenet": _movenet,
     "movenet-blazepose": _movenet_blazepose,
     "movenet-blazepose-static": functools.partial(_movenet_blazepose, track=False),
+    "movenet-blazepose-fast": functools.partial(_movenet_blazepose, detect_every=5),
 }
 #: The detector of ``rmpl run --videos/--images``, chosen by measurement
 #: (``rmpl.benchmarks.bench_detect``; docs/results.md).

@@ -438,6 +438,7 @@ _OPTION_CLASSES = {
     "movenet": ("rmpl.synth.detect_movenet", "MoveNet"),
     "movenet-blazepose": ("rmpl.synth.detect_movenet", "MoveNetBlazePose"),
     "movenet-blazepose-static": ("rmpl.synth.detect_movenet", "MoveNetBlazePose"),
+    "movenet-blazepose-fast": ("rmpl.synth.detect_movenet", "MoveNetBlazePose"),
 }
 
 
