@@ -123,6 +123,14 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         "default, up to 4 people), blazepose-multi-static, mediapipe (one person, MediaPipe's "
         "legacy Pose)",
     )
+    parser.add_argument(
+        "--detect-workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="videos/images: cameras detected at once, as tasks of a local Ray (rmpl[ray]); "
+        "the same 2D as one after the other (default 1)",
+    )
 
 
 def formats_of(text: str) -> list[str]:

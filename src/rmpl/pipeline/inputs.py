@@ -32,7 +32,8 @@ log = logging.getLogger(__name__)
 class InputSpec:
     """What to read: ``calib`` and one of ``keypoints`` (files or folders), ``videos`` or
     ``images`` (one per camera); ``fps`` if the input states none; ``skeleton`` when the 2D
-    joint set is ambiguous; ``detector`` for videos and images."""
+    joint set is ambiguous; ``detector`` for videos and images, ``detect_workers`` of them
+    detected at once (Ray tasks above 1; the same result)."""
 
     calib: str
     keypoints: list[str] | None = None
@@ -41,6 +42,7 @@ class InputSpec:
     fps: float | None = None
     skeleton: str | None = None
     detector: str | None = None
+    detect_workers: int | None = None
 
     @classmethod
     def from_args(cls, args) -> InputSpec:
@@ -119,6 +121,9 @@ def _load_2d(spec: InputSpec, cache: Path | None):
         return load_keypoints(spec.keypoints, skeleton=spec.skeleton)
     from rmpl.pipeline.detect2d import DEFAULT_DETECTOR, detect_images, detect_videos
 
+    workers = 1 if spec.detect_workers is None else spec.detect_workers
+    if workers < 1:
+        raise InputError("--detect-workers", None, "a whole number of 1 or more", str(workers))
     kind = "videos" if spec.videos else "images"
     sources = spec.videos if kind == "videos" else spec.images
     detector = spec.detector or DEFAULT_DETECTOR
@@ -131,9 +136,9 @@ def _load_2d(spec: InputSpec, cache: Path | None):
         log.info("%s was made from other inputs: detecting again", cache)
     resume = None if cache is None else cache.parent / ".detect2d"
     if kind == "videos":
-        kp = detect_videos(sources, detector, cache_dir=resume)
+        kp = detect_videos(sources, detector, cache_dir=resume, workers=workers)
     else:
-        kp = detect_images(sources, detector, fps=spec.fps, cache_dir=resume)
+        kp = detect_images(sources, detector, fps=spec.fps, cache_dir=resume, workers=workers)
     if cache is not None:
         _save_cache(kp, cache, stamp_path, stamp, resume)
     return kp

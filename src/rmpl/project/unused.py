@@ -69,6 +69,8 @@ def unused_options(
     if getattr(args, "keypoints", None):
         if _given(args, "detector"):
             lines.append("--detector not used: the 2D comes from --keypoints files")
+        if _given(args, "detect_workers"):
+            lines.append("--detect-workers not used: the 2D comes from --keypoints files")
         if _given(args, "no_overlay"):
             lines.append("--no-overlay not used: overlays are drawn for videos and images only")
     elif _given(args, "skeleton"):
