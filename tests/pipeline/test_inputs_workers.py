@@ -43,8 +43,9 @@ def test_detect_workers_is_passed_to_the_detection(tmp_path, monkeypatch):
 
     monkeypatch.setattr(detect2d, "detect_images", fake_detect_images)
     folders = _rig_and_folders(tmp_path)
-    argv = ["run", "--calib", str(tmp_path / "calib.toml"), "--images", *folders, "--fps", "25",
-            "--out", str(tmp_path / "out"), "--detect-workers", "2", "--method", "triangulate"]  # fmt: skip
+    argv = ["run", "--calib", str(tmp_path / "calib.toml"), "--images", *folders,
+            "--fps", "25", "--out", str(tmp_path / "out"), "--detect-workers", "2",
+            "--method", "triangulate"]  # fmt: skip
     main(argv)  # nobody is in these images: the run itself stops, the call was made
     assert seen["workers"] == 2
 
