@@ -520,9 +520,14 @@ def verdict_lines(report: RunReport) -> list[str]:
 
 
 def _markdown(r: RunReport) -> str:
+    md = _md_summary(r) + _md_people(r) + _md_disagreements(r)
+    md += _md_cameras(r) + _md_joints(r) + _md_definitions(r)
+    return "\n".join(md) + "\n"
+
+
+def _md_summary(r: RunReport) -> list[str]:
+    """report.md's title, floor, verdict and the one-camera statement."""
     p = r.poses
-    c = r.consistency
-    cfg = c.config if c else ConsistencyConfig()
     frames = f"{p.frames[0]}-{p.frames[-1]}" if p.num_frames else "none"
     fps = f"{p.fps:g} frames/s" if p.fps else "frame rate unknown"
     md = [
@@ -562,7 +567,11 @@ def _markdown(r: RunReport) -> str:
                 "body's shape.",
             ]
         md += [""]
-    md += ["## People", ""]
+    return md
+
+
+def _md_people(r: RunReport) -> list[str]:
+    md = ["## People", ""]
     md += _table(
         r.people,
         [
@@ -583,7 +592,11 @@ def _markdown(r: RunReport) -> str:
                if row["height_note"]]  # fmt: skip
     if unknown:
         md += ["", "Height unknown for " + "; ".join(unknown) + "."]
-    md += ["", "## View disagreements", ""]
+    return md
+
+
+def _md_disagreements(r: RunReport) -> list[str]:
+    md = ["", "## View disagreements", ""]
     if r.disagreements:
         md += _table(
             [{**d, "ranges_text": format_ranges(d["ranges"], limit=20)} for d in r.disagreements],
@@ -597,7 +610,12 @@ def _markdown(r: RunReport) -> str:
             ],
         )
     else:
-        md += ["None." if c is not None else "Not checked."]
+        md += ["None." if r.consistency is not None else "Not checked."]
+    return md
+
+
+def _md_cameras(r: RunReport) -> list[str]:
+    md = []
     if r.cameras:
         md += ["", "## Cameras", "", "Counts are person-frames (one person in one frame).", ""]
         md += _table(
@@ -616,6 +634,11 @@ def _markdown(r: RunReport) -> str:
                 ("reprojection_mm_median", "reproj. error median (mm)"),
             ],
         )
+    return md
+
+
+def _md_joints(r: RunReport) -> list[str]:
+    md = []
     if r.joints:
         md += ["", "## Joints", "", "Over every person, measured frame and view with 2D.", ""]
         cols = [
@@ -632,7 +655,12 @@ def _markdown(r: RunReport) -> str:
         if r.joints and "predicted_error_radius_mm" in r.joints[0]:
             cols.append(("predicted_error_radius_mm", "predicted 50% error radius (mm)"))
         md += _table(r.joints, cols)
-    md += ["", "## Definitions", ""]
+    return md
+
+
+def _md_definitions(r: RunReport) -> list[str]:
+    cfg = r.consistency.config if r.consistency else ConsistencyConfig()
+    md = ["", "## Definitions", ""]
     md += [f"- **{k.replace('_', ' ')}**: {v}." for k, v in _DEFINITIONS.items()]
     md += [
         f"- **threshold**: a view disagrees above {cfg.threshold:g} of the person's size "
@@ -643,7 +671,7 @@ def _markdown(r: RunReport) -> str:
     ]
     if r.notes:
         md += ["", "## Notes", ""] + [f"- {n}" for n in r.notes]
-    return "\n".join(md) + "\n"
+    return md
 
 
 def write_report(report: RunReport, folder: Path) -> list[Path]:
