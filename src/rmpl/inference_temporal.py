@@ -68,7 +68,7 @@ class RadiusCalibration:
     views seeing the joint in that frame, the last entry serving every larger ``k``. The
     factors are quantiles of error / sigma on held-out windows
     (:func:`rmpl.training.temporal.fit_radius_calibration`; the shipped model's: MHP
-    sequences seen by the real detector, ``scripts/temporal_calibrate.py --mhp``), stored in
+    sequences seen by the real detector, ``rmpl.benchmarks.temporal_calibrate --mhp``), stored in
     the checkpoint's ``config.json`` under ``"calibration"``.
     """
 

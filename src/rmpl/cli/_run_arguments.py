@@ -61,6 +61,13 @@ def _add_tracking_arguments(parser: argparse.ArgumentParser) -> None:
         help="drop people present in fewer than N frames (ghosts; 1 keeps all)",
     )
     parser.add_argument(
+        "--people",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="how many people were filmed, when known: shorter tracks join the others or go",
+    )
+    parser.add_argument(
         "--duplicate-tolerance",
         type=_tolerance,
         default=DUPLICATE_TOLERANCE,
@@ -92,6 +99,14 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
         "COCO_17 or HALPE_26 marker names, by the model's joint set): in Pose2Sim's Y-up axes "
         "(default), the world's Z-up axes, or off",
     )
+    parser.add_argument(
+        "--pose2sim-min-frames",
+        type=at_least_one,
+        default=None,
+        metavar="N",
+        help="people in fewer frames get no TRC + C3D of their own in pose-3d/ (they stay in "
+        "the other exports; default: one second of frames)",
+    )
     parser.add_argument("--no-pictures", action="store_true", help="skip viewer.html and the PNGs")
     parser.add_argument(
         "--no-overlay",
@@ -101,8 +116,10 @@ def _add_output_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--detector",
         default=None,
-        help="videos/images: 2D detector: blazepose-multi (default: up to 4 people per view, "
-        "followed over frames), blazepose-multi-static, mediapipe (one person, MediaPipe's "
+        help="videos/images: 2D detector: movenet-blazepose (default: MoveNet finds up to 6 "
+        "people per view, BlazePose draws each with heels and toes, followed over frames), "
+        "movenet-blazepose-static, movenet (COCO-17, no feet), blazepose-multi (the former "
+        "default, up to 4 people), blazepose-multi-static, mediapipe (one person, MediaPipe's "
         "legacy Pose)",
     )
 

@@ -6,9 +6,10 @@ triangulation), tracking, smoothing, export (NPZ, JSON, TRC, C3D, BVH) and pictu
 overlays overlay_<camera>.mp4 or overlay_<camera>/).
 
 From videos (--videos, one synchronised video per camera) or image folders (--images, one
-folder of frames per camera, image i of each folder = frame i): BlazePose's networks
-(needs rmpl[detect]) find up to 4 people per frame and view and follow them over frames
-(--detector mediapipe: one person, MediaPipe's legacy Pose). The videos must have the same
+folder of frames per camera, image i of each folder = frame i): MoveNet MultiPose finds up
+to 6 people per frame and view, BlazePose's landmark network draws each (feet included) and
+follows them over frames (needs rmpl[detect]; --detector blazepose-multi: the former
+detector; mediapipe: one person, MediaPipe's legacy Pose). The videos must have the same
 number of frames and frame rate; the cameras of --calib are matched to the videos by name
 (file name without suffix = camera name) or else by order. The 2D detections are cached in
 OUT/keypoints2d.npz with a fingerprint of the inputs (names, sizes, modification times) in
@@ -57,6 +58,7 @@ import numpy as np
 
 from rmpl.cli._run_arguments import add_run_arguments, formats_of
 from rmpl.pipeline.association import AssociationConfig
+from rmpl.pipeline.identity import IdentityConfig
 
 log = logging.getLogger(__name__)
 
@@ -64,18 +66,6 @@ log = logging.getLogger(__name__)
 def register(parser: argparse.ArgumentParser) -> None:
     add_run_arguments(parser)
     parser.set_defaults(run=run)
-
-
-def _warn_unused_filter(args: argparse.Namespace) -> None:
-    """--filter / --cutoff set away from their defaults do nothing with the temporal model."""
-    from rmpl.models import is_temporal_checkpoint
-
-    changed = args.filter != "butterworth" or args.cutoff != 6.0
-    if changed and args.method == "rmpl" and is_temporal_checkpoint(args.model):
-        log.warning(
-            "--filter / --cutoff do not apply to the temporal model (it filters with rmpl "
-            "run's defaults); give --model default to filter per-frame answers your way"
-        )
 
 
 def _log_uncertainty(poses) -> None:
@@ -102,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from rmpl.pipeline.job import estimate_poses
     from rmpl.pipeline.outputs import write_all, write_input_overlays
     from rmpl.pipeline.runner import RunConfig
+    from rmpl.project.unused import warn_unused_options
 
     formats = formats_of(args.formats)
     out = Path(args.out)
@@ -119,8 +110,9 @@ def run(args: argparse.Namespace) -> int:
         min_track_frames=args.min_track,
         up=None if up is None else tuple(up),
         association=AssociationConfig(duplicate_tolerance=args.duplicate_tolerance),
+        identity=IdentityConfig(people=args.people),
     )
-    _warn_unused_filter(args)
+    warn_unused_options(args, inputs.fps, auto_model)  # said, never dropped in silence
     poses, floor, single = estimate_poses(inputs, cfg, args.floor, auto_model=auto_model)
     check_estimated(poses, args, args.method)
     log_joint_sets(inputs.skeleton, poses.skeleton)
@@ -136,5 +128,6 @@ def run(args: argparse.Namespace) -> int:
         poses, inputs, out, formats, pictures=not args.no_pictures, overlays=overlays,
         pose2sim=None if args.pose2sim == "off" else args.pose2sim,
         up=None if up is None else np.asarray(up, float), floor=floor,
+        pose2sim_min_frames=args.pose2sim_min_frames,
     )  # fmt: skip
     return report.exit_code  # 3: a person's views disagree in most frames (outputs written)

@@ -75,8 +75,8 @@ CUES = ("floor", "size", "time")
 #: The one-view log-depth error of a model that reads the floor (``lifter_sd`` of
 #: :meth:`MonocularConfig.for_model`): the robust standard deviation (1.4826 MAD) of the
 #: shipped ``floor26``'s log(estimated / true distance) of the mid-hip on held-out renders
-#: with a real detector, one view, the floor given (``scripts/floor_select.py``; docs/results.md,
-#: "A lifter that reads the floor"). The tails are heavier (plain sd 0.124).
+#: with a real detector, one view, the floor given (``rmpl.benchmarks.floor_select``;
+#: docs/results.md, "One camera"). The tails are heavier (plain sd 0.124).
 FLOOR_MODEL_LIFTER_SD = 0.033
 #: The floor error assumed when the floor is the calibration's convention (its origin on the
 #: floor), metres: a guess, not a measurement (Shelf's z = 0 is 9 cm off, a Qualisys L-frame's

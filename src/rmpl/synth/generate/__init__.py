@@ -69,6 +69,8 @@ from rmpl.synth.generate.frames import _draw_poses, _scale_cameras, occlude
 from rmpl.synth.generate.scenes import (
     MATCH_TOLERANCE,
     SCENE_GAP,
+    _detect_people_apart,
+    _scene,
     match_detections,
     room_fits,
     spread,
@@ -130,9 +132,11 @@ __all__ = [
     "_MOTION_FORMAT",
     "_SEQUENCE_KEYS",
     "_config_dict",
+    "_detect_people_apart",
     "_draw_poses",
     "_prepare_bank",
     "_scale_cameras",
     "_prepare_motion",
+    "_scene",
     "_write_manifest",
 ]
