@@ -477,14 +477,7 @@ def train(
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     model = build_model(cfg.model_config())
-    J = model.config.num_joints
-    for name, poses in (("training", poses_train), ("validation", poses_val)):
-        if np.shape(poses)[1:] != (J, 3):
-            raise InputError(
-                cfg.poses, "poses", f"{name} poses of {J} joints, as the model's "
-                f"{model.config.skeleton} (rmpl poses --body anny makes HALPE-26)",
-                np.shape(poses),
-            )  # fmt: skip
+    _check_poses(cfg, model, poses_train, poses_val)
     if cfg.init:
         init_from_checkpoint(model, cfg.init)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -526,6 +519,18 @@ def train(
     if math.isfinite(progress.running or 0):
         log.info("done: %s", out)
     return out
+
+
+def _check_poses(cfg: TrainConfig, model: RMPL, poses_train, poses_val) -> None:
+    """The pose banks must have the model's joint count (a HALPE-26 model needs HALPE-26)."""
+    J = model.config.num_joints
+    for name, poses in (("training", poses_train), ("validation", poses_val)):
+        if np.shape(poses)[1:] != (J, 3):
+            raise InputError(
+                cfg.poses, "poses", f"{name} poses of {J} joints, as the model's "
+                f"{model.config.skeleton} (rmpl poses --body anny makes HALPE-26)",
+                np.shape(poses),
+            )  # fmt: skip
 
 
 def _validate(model, sets, mhp_sets, tri, progress: _Progress, log_file: Path, bar) -> dict:
