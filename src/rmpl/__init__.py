@@ -6,7 +6,7 @@ views; the lifter takes one person, (T, V, J, 2), so pass person ``p`` as ``[:, 
 (``rmpl run`` associates and tracks several people)::
 
     >>> import rmpl
-    >>> from rmpl.cli.example import EXAMPLE
+    >>> from rmpl.evaluate.example import EXAMPLE
     >>> rig = rmpl.load_rig(EXAMPLE / "calibration.toml")
     >>> kp = rmpl.load_keypoints(EXAMPLE / "keypoints.json")
     >>> result = rmpl.Lifter.from_pretrained().lift(kp.keypoints[:, :, 0], kp.scores[:, :, 0], rig)

@@ -54,6 +54,7 @@ from rmpl.errors import InputError
 from rmpl.skeleton import SKELETONS
 
 __all__ = [
+    "leg_length",
     "HEIGHT_FRACTIONS",
     "CHAIN_FRACTION",
     "EXTRA_FRACTIONS",
@@ -267,3 +268,12 @@ def body_segments(
         if found:
             out[name] = round(float(np.mean(found)), 6)
     return out
+
+
+def leg_length(joints: np.ndarray) -> float:
+    """Mean hip-knee-ankle length of both legs over the frames, metres. joints: (T, 17, 3)
+    COCO-17 (or the first 17 of HALPE-26); a mean over bones and frames, not a robust one."""
+    legs = [(11, 13, 15), (12, 14, 16)]
+    bones = [np.linalg.norm(joints[:, a] - joints[:, b], axis=-1) for h, k, f in legs
+             for a, b in ((h, k), (k, f))]  # fmt: skip
+    return float(np.mean(bones) * 2)

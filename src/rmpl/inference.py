@@ -179,7 +179,7 @@ class Lifter:
 
         ``backend``: "onnx" (onnxruntime, fastest on CPU), "torch", or "auto" (onnx when
         onnxruntime is installed)."""
-        from rmpl.training.loop import load_checkpoint
+        from rmpl.model.checkpoint import load_checkpoint
 
         path = PRETRAINED.get(str(name_or_path), Path(name_or_path))
         if not (Path(path) / "config.json").is_file():
@@ -248,6 +248,18 @@ class Lifter:
                 None, "scores", "at least one keypoint with confidence > 0", "all zero"
             )
         lead, (V, J) = kp.shape[:-3], kp.shape[-3:-1]
+        rays, s, Rc, rows = self._network_inputs(kp, sc, ok, rig, up, floor)
+        out = self._batched(rays, s, batch_size, progress, rows)
+        points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
+        empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
+        points[empty] = np.nan
+        return LiftResult(points, ok.sum(-2))
+
+    def _network_inputs(self, kp, sc, ok, rig: Rig, up, floor):
+        """The network's rays (B, V, J, 6) and scores (B, V, J) in the z-up frame ``Rc``
+        (the floor's normal is the world's up for a model that reads it), and its floor
+        rows (B, 4) or None. Returns rays, scores, Rc, rows."""
+        V, J = kp.shape[-3:-1]
         if up is None and floor is not None and self.reads_floor:
             up = floor.n  # the floor's normal is the world's up
         Rc = rotation_to_z(estimate_up(rig) if up is None else np.asarray(up, float))
@@ -258,11 +270,7 @@ class Lifter:
         rows = None
         if floor is not None and self.reads_floor:
             rows = np.broadcast_to(floor_row(floor, Rc), (len(rays), 4)).copy()
-        out = self._batched(rays, s, batch_size, progress, rows)
-        points = (out.astype(float) @ Rc).reshape(*lead, J, 3)  # back to the user's world
-        empty = ~ok.reshape(*lead, V * J).any(-1) if lead else ~ok.any()
-        points[empty] = np.nan
-        return LiftResult(points, ok.sum(-2))
+        return rays, s, Rc, rows
 
     def _batched(self, rays, s, batch_size: int, progress: bool, floor=None) -> np.ndarray:
         """The network on (N, V, J, 6) rays (and (N, 4) floor rows), ``batch_size`` rows at a

@@ -160,7 +160,7 @@ def assemble_track(
     Returns:
         (T, J, 3), NaN where ``network`` is NaN.
     """
-    from rmpl.pipeline import filters
+    from rmpl import filters
 
     has = np.isfinite(network).all(-1, keepdims=True)  # (T, J, 1)
     x = np.where((num_views >= 2)[..., None] & np.isfinite(frame), frame, network)
@@ -242,7 +242,7 @@ class TemporalLifter:
     @classmethod
     def from_pretrained(cls, name_or_path: str | Path = "temporal") -> TemporalLifter:
         """Load the shipped temporal model by name or a checkpoint directory."""
-        from rmpl.training.temporal import load_temporal
+        from rmpl.model.checkpoint import load_temporal
 
         path = Path(PRETRAINED_TEMPORAL.get(str(name_or_path), name_or_path))
         if not (path / "config.json").is_file():

@@ -15,7 +15,8 @@ import torch
 from rmpl.data.base import MultiViewDataset
 from rmpl.evaluate.evalset import EvalSet
 from rmpl.evaluate.harness import evaluate, evaluate_poses
-from rmpl.evaluate.methods import MonocularMethod, fit_input, make_method, parse_methods
+from rmpl.evaluate.methods import MonocularMethod, fit_input, make_method
+from rmpl.evaluate.registry import parse_methods
 from rmpl.evaluate.scoring import PCP_PART_NAMES, pcp_by_actor, pcp_parts_by_actor, shelf15_own
 from rmpl.evaluate.tables import benchmark_files, write_files
 from rmpl.geometry.camera import Camera, Rig, look_at

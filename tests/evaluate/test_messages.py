@@ -6,7 +6,8 @@ import pytest
 from rmpl.errors import InputError
 from rmpl.evaluate.harness import EvalConfig
 from rmpl.evaluate.heldout import heldout_view_errors
-from rmpl.evaluate.methods import METHODS, parse_methods
+from rmpl.evaluate.methods import METHODS
+from rmpl.evaluate.registry import parse_methods
 
 
 def test_unknown_method_names_the_option_and_the_accepted_values():

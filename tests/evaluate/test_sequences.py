@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from rmpl.errors import InputError
-from rmpl.evaluate.methods import parse_methods
+from rmpl.evaluate.registry import parse_methods
 from rmpl.evaluate.sequences import dataset_fps, is_sequence_method, make_sequence_method
 from rmpl.geometry.camera import Camera, Rig, look_at
 from rmpl.model.lifter import PRESETS, RMPL

@@ -218,7 +218,7 @@ def test_robust_anchor_model_starts_at_robust_triangulation():
             RMPLConfig(robust_anchor=bad)
 
 
-@pytest.mark.parametrize("name", ["default", "occlusion", "halpe26", "floor26", "scenes26"])
+@pytest.mark.parametrize("name", ["default", "occlusion", "halpe26", "floor26"])
 def test_shipped_models_load_and_lift(name):
     """Every shipped model loads by name and lifts exact 2D from 3 views close to the truth."""
     from rmpl.geometry.camera import Camera, Rig, look_at

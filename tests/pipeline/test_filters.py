@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rmpl.errors import InputError
-from rmpl.pipeline.filters import butterworth, fill_gaps, finite_runs, hampel, one_euro
+from rmpl.filters import butterworth, fill_gaps, finite_runs, hampel, one_euro
 
 FPS = 100.0
 

@@ -111,7 +111,8 @@ def test_one_camera_without_a_floor_and_without_model_lifts_with_the_no_floor_mo
 
 
 def test_evaluate_method_names_a_model_with_or_without_cues(floor_model):
-    from rmpl.evaluate.methods import MonocularMethod, parse_methods
+    from rmpl.evaluate.methods import MonocularMethod
+    from rmpl.evaluate.registry import parse_methods
 
     methods = parse_methods(f"rmpl+floor@{floor_model},rmpl+floor:none@{floor_model}")
     a, b = methods.values()

@@ -151,7 +151,7 @@ def test_the_embedded_example_flags_exactly_the_grossly_wrong_detections():
     person's size from the projected ground truth (MediaPipe's gross misses); the height from
     the lifted 3D is within 3% of the height from the ground truth's joints."""
     import rmpl
-    from rmpl.cli.example import EXAMPLE
+    from rmpl.evaluate.example import EXAMPLE
 
     rig = rmpl.load_rig(EXAMPLE / "calibration.toml")
     kp = rmpl.load_keypoints(EXAMPLE / "keypoints.json")

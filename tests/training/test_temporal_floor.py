@@ -280,7 +280,7 @@ def test_evaluate_takes_a_temporal_floor_model_as_a_sequence_method_only(floor_r
     # time), with the time cue, and only with a model that reads the floor - never quietly
     # its per-frame model.
     from rmpl.cli import main
-    from rmpl.evaluate.methods import parse_methods
+    from rmpl.evaluate.registry import parse_methods
     from rmpl.evaluate.sequences import needs_time
 
     d, _ = floor_run

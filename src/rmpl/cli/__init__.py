@@ -21,6 +21,7 @@ COMMANDS = {
     "evaluate": "rmpl.cli.evaluate",
     "bench": "rmpl.cli.bench",
     "example": "rmpl.cli.example",
+    "models": "rmpl.cli.models",
     "run": "rmpl.cli.run",
     "generate": "rmpl.cli.generate",
     "batch": "rmpl.cli.batch",

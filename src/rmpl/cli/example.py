@@ -2,10 +2,11 @@
 
 Writes poses.{npz,json,trc,c3d,bvh}, report.md/report.json, pose-3d/ (the Pose2Sim files),
 viewer.html (open it in a browser), skeleton.png and reprojection.png into --out, and
-prints the error of RMPL and of robust triangulation against the example's ground truth.
-The example was made by rmpl itself (rmpl.benchmarks.make_example): a held-out motion-capture
-walk retargeted onto an anny body, rendered from 4 synthetic cameras, with MediaPipe
-BlazePose's 2D detections of the renders.
+prints the error of RMPL, robust triangulation and triangulation against the example's
+ground truth, with all 4 cameras and with 2 (the mean over the 6 pairs), and which wins
+where. The example was made by rmpl itself (rmpl benchmark make_example): a held-out
+motion-capture walk retargeted onto an anny body, rendered from 4 synthetic cameras, with
+MediaPipe BlazePose's 2D detections of the renders.
 """
 
 from __future__ import annotations
@@ -20,45 +21,24 @@ from rmpl.models import MODEL_HELP
 
 log = logging.getLogger(__name__)
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "walk"
-
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/example", help="output folder")
-    parser.add_argument(
-        "--model",
-        default="floor26",
-        help=MODEL_HELP,
-    )
+    parser.add_argument("--model", default="floor26", help=MODEL_HELP)
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from rmpl.cli._common import load_calibration_and_2d
-    from rmpl.metrics import mpjpe
+    from rmpl.evaluate.example import METHODS, example_inputs, score_methods, verdict
     from rmpl.pipeline.outputs import FORMATS, write_all
-    from rmpl.pipeline.runner import RunConfig, run_with_floor
-    from rmpl.skeleton import KP_STAR
 
-    ns = argparse.Namespace(
-        calib=str(EXAMPLE / "calibration.toml"),
-        keypoints=[str(EXAMPLE / "keypoints.json")],
-        skeleton=None,
-        fps=None,
-    )
-    inputs = load_calibration_and_2d(ns)
-    gt = np.load(EXAMPLE / "ground_truth.npz")["points"][:, 0, :17]  # (T, 17, 3)
+    inputs, gt = example_inputs()
     out = Path(args.out)
-    results = {}
-    for method in ("rmpl", "robust", "triangulate"):
-        cfg = RunConfig(method=method, model=args.model)
-        poses, floor = run_with_floor(
-            inputs.keypoints, inputs.scores, inputs.rig, inputs.frames, inputs.fps, cfg,
-            joints=inputs.skeleton,
-        )  # fmt: skip
-        results[method] = poses.points[:, 0, :17]  # scored on COCO-17 (HALPE-26's first 17)
-        if method == "rmpl":
-            write_all(poses, inputs, out, list(FORMATS), floor=floor)
+
+    def keep(poses, floor):
+        write_all(poses, inputs, out, list(FORMATS), floor=floor)
+
+    scores = score_methods(inputs, gt, args.model, keep)
     sc = inputs.scores
     seen = sc[:, :, 0] > 0
     err2d = np.linalg.norm(inputs.keypoints[:, :, 0] - inputs.rig.project(gt), axis=-1)[seen]
@@ -67,18 +47,14 @@ def run(args: argparse.Namespace) -> int:
         f"{100 * (sc == 0).mean():.0f}% of 2D keypoints missing; the 2D lies a median of "
         f"{np.median(err2d):.1f} px (mean {err2d.mean():.1f}) from the projected ground truth"
     )
-    for method, label in (
-        ("rmpl", "RMPL"),
-        ("robust", "robust triangulation"),
-        ("triangulate", "triangulation (DLT)"),
-    ):
-        p = results[method]
-        cov = 100 * np.isfinite(p).all(-1).mean()
-        print(
-            f"  {label:21s} MPJPE {1000 * mpjpe(p, gt):5.1f} mm"
-            f"   KP* {1000 * mpjpe(p, gt, KP_STAR):5.1f} mm"
-            f"   ({cov:.0f}% of joints estimated)"
-        )
+    for setting, by_method in scores.items():
+        print(f"{setting}{' (mean of the 6 pairs)' if setting == '2 cameras' else ''}:")
+        for method, s in by_method.items():
+            print(
+                f"  {METHODS[method]:21s} MPJPE {s.mpjpe:5.1f} mm   KP* {s.kp_star:5.1f} mm"
+                f"   ({s.coverage:.0f}% of joints estimated)"
+            )
+    print(verdict(scores))
     print(
         f"wrote {out}: poses.{{npz,json,trc,c3d,bvh}}, report.md, report.json, pose-3d/, "
         "viewer.html, skeleton.png, reprojection.png"

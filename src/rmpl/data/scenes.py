@@ -3,7 +3,7 @@ as lifter training pairs, one pair per body.
 
 A scene shard holds, per image, every person the detector found (``N`` slots, unassociated)
 and ``match``: the body each slot is of, by the bodies' projected joints (see
-:data:`rmpl.synth.generate.SCENE_ARRAYS`). A body's pair is its 3D joints and, in each view
+:data:`rmpl.synth.shards.SCENE_ARRAYS`). A body's pair is its 3D joints and, in each view
 of its scene, the 2D of the slot matched to it, or nothing (score 0, NaN) when no slot is.
 :func:`load_scene_pairs` returns the arrays :func:`rmpl.data.mhp.load_mhp` returns for a
 one-body set, so :func:`~rmpl.data.mhp.load_mhp` reads scene sets through it and
@@ -36,7 +36,7 @@ _BODY_KEYS = ("joints3d", "subject", "clip", "frame")
 
 def is_scene_set(root: str | Path) -> bool:
     """Whether ``root`` holds a manifest of a multi-person scene set (``rmpl.mhp.scenes.v1``)."""
-    from rmpl.synth.generate import SCENE_FORMAT
+    from rmpl.synth.shards import SCENE_FORMAT
 
     manifest = Path(root) / "manifest.json"
     if not manifest.is_file():
@@ -103,11 +103,11 @@ def load_scene_pairs(
         InputError: not a scene directory, another joint set, no shards, a missing or
             malformed array, or no body selected.
     """
-    from rmpl.data.mhp import _manifest_and_shards, _selected
-    from rmpl.synth.generate import SCENE_FORMAT
+    from rmpl.data.shards import manifest_and_shards, selected
+    from rmpl.synth.shards import SCENE_FORMAT
 
     root = Path(root)
-    stored, shards = _manifest_and_shards(root, SCENE_FORMAT)
+    stored, shards = manifest_and_shards(root, SCENE_FORMAT)
     parts: dict[str, list] = {}
     for path in shards:
         for k, v in _shard_pairs(path).items():
@@ -116,7 +116,7 @@ def load_scene_pairs(
     if len(views) > 1:
         raise InputError(root, "views", "one number of views in every shard", views)
     d = {k: np.concatenate(v) for k, v in parts.items()}
-    return _selected(d, root, subjects, exclude_subjects, joints, stored, "bodies")
+    return selected(d, root, subjects, exclude_subjects, joints, stored, "bodies")
 
 
 def _shard_pairs(path: Path) -> dict[str, np.ndarray]:

@@ -270,8 +270,8 @@ def anny_sequence_bank(
     follows the mocap's, scaled by the ratio of leg lengths (as ``rmpl generate`` moves its
     sequences); the segment's lowest vertex stands on the floor (z = 0).
     """
+    from rmpl.anthropometry import leg_length
     from rmpl.synth.body import sample_phenotypes
-    from rmpl.synth.generate import _leg_length
     from rmpl.synth.retarget import anny_deltas, bone_parents, mocap_drivers, reference_heads
 
     rng = np.random.default_rng(seed)
@@ -296,7 +296,7 @@ def anny_sequence_bank(
                 joints.append(bodies.keypoints.astype(float))
                 floor = min(floor, float(bodies.vertices[..., 2].min()))
             joints = np.concatenate(joints)
-            scale = _leg_length(joints) / max(_leg_length(mocap), 1e-6)
+            scale = leg_length(joints) / max(leg_length(mocap), 1e-6)
             path = scale * mocap[:, 11:13].mean(1)
             shift = path - joints[:, 11:13].mean(1)  # (T, 3): the body's mid-hip on the path
             shift[:, 2] = 0.0

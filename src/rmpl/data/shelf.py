@@ -7,7 +7,7 @@ A Shelf folder (``root``) holds:
   (0..3) and a 4 x 15 matrix (rows x, y, z, 1; metres, z up);
 - ``detection/<v>.txt``: header ``4 T`` (4 = BODY_25); per frame, for each of the 25
   BODY_25 joints a count n and three rows of n numbers (x, y normalised to [0, 1],
-  score), then for each of the 26 BODY_25 limbs (:data:`rmpl.pipeline.association.BODY25_LIMBS`)
+  score), then for each of the 26 BODY_25 limbs (:data:`rmpl.io.candidates.BODY25_LIMBS`)
   an n_a x n_b matrix of part-affinity scores;
 - ``first_frame.txt``: the Shelf frame number of the first frame.
 
@@ -25,7 +25,7 @@ import numpy as np
 
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
-from rmpl.pipeline.association import BODY25_LIMBS, Candidates
+from rmpl.io.candidates import BODY25_LIMBS, Candidates
 
 __all__ = ["ShelfData", "load_shelf", "NUM_ACTORS", "NUM_VIEWS"]
 

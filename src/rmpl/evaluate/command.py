@@ -14,8 +14,8 @@ __all__ = ["evaluate_command"]
 
 def evaluate_command(args, command: str):
     """The evaluation ``args`` (the parsed options of ``rmpl evaluate``) ask for."""
-    from rmpl.evaluate.methods import parse_methods
     from rmpl.evaluate.options import eval_config
+    from rmpl.evaluate.registry import parse_methods
     from rmpl.evaluate.sequences import dataset_fps
 
     fps = dataset_fps(args.dataset, args.fps)

@@ -41,7 +41,7 @@ __all__ = [
     "MonocularMethod",
     "fit_input",
     "make_method",
-    "parse_methods",
+    "stretches",
 ]
 
 Method = Callable[[np.ndarray, np.ndarray, Rig], np.ndarray]
@@ -221,8 +221,6 @@ class MonocularMethod:
         frame, num_frames, rig, fps = rest[:4]
         if len(rig) > 1:  # every view: the plain lifter, per frame
             return self._multi_view(kp, sc, rig), frame
-        from rmpl.evaluate.sequences import stretches
-
         floor = self._floor(rig)
         up = None if floor is None else floor.n
         preds, at = [np.zeros((0, self._lifter.num_joints, 3))], [np.zeros(0, int)]
@@ -273,28 +271,24 @@ def make_method(spec: str) -> Method:
     return METHODS[name](arg)
 
 
-def parse_methods(spec: str) -> dict[str, Method]:
-    """``--methods``: comma-separated method specs -> name -> method, in the given order.
+def stretches(num_frames: int, frame_numbers=None, clips=None) -> list[tuple[int, int, int]]:
+    """Continuous stretches [a, b) of a part's frames with their frame step: a new stretch
+    starts at a new clip or where the numbering jumps by other than the usual step.
 
-    Raises:
-        InputError: no method, a repeated method, or an unknown name.
+    >>> stretches(6, np.array([0, 1, 2, 10, 11, 12]))
+    [(0, 3, 1), (3, 6, 1)]
+    >>> stretches(4, np.array([0, 5, 10, 15]))
+    [(0, 4, 5)]
     """
-    names = [m.strip() for m in spec.split(",") if m.strip()]
-    if not names:
-        raise InputError(None, "--methods", "at least one method", spec)
-    if len(set(names)) != len(names):
-        raise InputError(None, "--methods", "each method once", spec)
-    from rmpl.evaluate.sequences import (
-        SEQUENCE_METHODS,
-        is_sequence_method,
-        make_sequence_method,
-    )
-
-    for name in names:
-        if _spec_parts(name)[0] not in METHODS and not is_sequence_method(name):
-            accepted = ", ".join([*METHODS, *SEQUENCE_METHODS])
-            raise InputError(None, "--methods", f"methods among {accepted} (rmpl:MODEL)", name)
-    return {
-        name: make_sequence_method(name) if is_sequence_method(name) else make_method(name)
-        for name in names
-    }
+    if frame_numbers is None or num_frames < 2:
+        return [(0, num_frames, 1)] if num_frames else []
+    f = np.asarray(frame_numbers)
+    d = np.diff(f)
+    step = int(np.median(d)) if len(d) else 1
+    cut = d != step
+    if clips is not None:
+        c = np.asarray(clips)
+        cut |= c[1:] != c[:-1]
+    starts = np.r_[0, np.flatnonzero(cut) + 1]
+    ends = np.r_[starts[1:], num_frames]
+    return [(int(a), int(b), max(step, 1)) for a, b in zip(starts, ends, strict=True)]

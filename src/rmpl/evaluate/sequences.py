@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rmpl.evaluate.methods import fit_input, make_method, stretches
 from rmpl.geometry import Rig
 
 __all__ = [
@@ -99,12 +100,9 @@ class SequenceMethod:
     sequence: bool = True
 
     def __post_init__(self) -> None:
-        from rmpl.evaluate.methods import make_method
-
         if self.temporal is None:
             self._frame = make_method(self.base)
         else:  # track with the temporal model's own per-frame model, as rmpl run does
-            from rmpl.evaluate.methods import fit_input
             from rmpl.inference import Lifter
 
             lifter = Lifter(self.temporal.model.frame_model)
@@ -145,7 +143,6 @@ class SequenceMethod:
                 tracks[t, p] = per_frame[t][index[t, p]]
             out, _ = smooth(tracks, fps, RunConfig(cutoff=min(cfg.cutoff, 0.45 * fps)))
         else:
-            from rmpl.evaluate.methods import fit_input
             from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
 
             kp, sc = fit_input(kp, sc, self.temporal.num_joints)
@@ -154,29 +151,6 @@ class SequenceMethod:
             out, _, _ = lift_tracks(k2, s2, rig, self.temporal, fps, cfg.max_gap)
         t_idx, p_idx = np.nonzero(np.isfinite(out).all(-1).any(-1))
         return out[t_idx, p_idx], t_idx
-
-
-def stretches(num_frames: int, frame_numbers=None, clips=None) -> list[tuple[int, int, int]]:
-    """Continuous stretches [a, b) of a part's frames with their frame step: a new stretch
-    starts at a new clip or where the numbering jumps by other than the usual step.
-
-    >>> stretches(6, np.array([0, 1, 2, 10, 11, 12]))
-    [(0, 3, 1), (3, 6, 1)]
-    >>> stretches(4, np.array([0, 5, 10, 15]))
-    [(0, 4, 5)]
-    """
-    if frame_numbers is None or num_frames < 2:
-        return [(0, num_frames, 1)] if num_frames else []
-    f = np.asarray(frame_numbers)
-    d = np.diff(f)
-    step = int(np.median(d)) if len(d) else 1
-    cut = d != step
-    if clips is not None:
-        c = np.asarray(clips)
-        cut |= c[1:] != c[:-1]
-    starts = np.r_[0, np.flatnonzero(cut) + 1]
-    ends = np.r_[starts[1:], num_frames]
-    return [(int(a), int(b), max(step, 1)) for a, b in zip(starts, ends, strict=True)]
 
 
 def make_sequence_method(spec: str) -> SequenceMethod:

@@ -216,13 +216,7 @@ def fit_skeleton(points: np.ndarray) -> BvhSkeleton:
     X = _fill_gaps(X)
     T, N = len(X), len(_TABLE)
     P = np.stack([X[:, list(idx)].mean(1) for _, _, idx in _TABLE], axis=1)  # (T, N, 3)
-    offsets = np.zeros((N, 3))
-    for j, d in _REST_DIR.items():
-        length = _median_length(P[:, _PARENTS[j]], P[:, j])
-        if j in (1, 4, 9, 12):  # each half of the hip or shoulder line
-            length = _median_length(P[:, 1 if j in (1, 4) else 9], P[:, 4 if j in (1, 4) else 12])
-            length /= 2
-        offsets[j] = d * length
+    offsets = _rest_offsets(P)
     G = np.zeros((T, N, 3, 3))
     spine = P[:, 8] - P[:, 0]
     G[:, 0] = _frame(P[:, 1] - P[:, 4], spine)
@@ -256,6 +250,19 @@ def fit_skeleton(points: np.ndarray) -> BvhSkeleton:
     G = np.where(np.isnan(G), np.eye(3), G)  # a joint never seen: no rotation data
     ends = {j: _END_LENGTH * _unit(offsets[j]) for j in (3, 6, 11, 14, *_HEAD)}
     return BvhSkeleton(offsets, P[:, 0], G, ends)
+
+
+def _rest_offsets(P: np.ndarray) -> np.ndarray:
+    """Each joint's rest offset from its parent (N, 3): its rest direction times the bone's
+    median length (each half of the hip and shoulder lines: half the line's)."""
+    offsets = np.zeros((len(_TABLE), 3))
+    for j, d in _REST_DIR.items():
+        length = _median_length(P[:, _PARENTS[j]], P[:, j])
+        if j in (1, 4, 9, 12):  # each half of the hip or shoulder line
+            length = _median_length(P[:, 1 if j in (1, 4) else 9], P[:, 4 if j in (1, 4) else 12])
+            length /= 2
+        offsets[j] = d * length
+    return offsets
 
 
 def _euler_zxy(R: np.ndarray) -> np.ndarray:

@@ -288,7 +288,7 @@ def lift_single_view(
     """
     from rmpl.inference import checkpoint_reads_floor
     from rmpl.inference_temporal import is_temporal_checkpoint
-    from rmpl.pipeline.runner import RunConfig, smooth
+    from rmpl.pipeline.runner import RunConfig
 
     cfg = config or RunConfig()
     if is_temporal_checkpoint(cfg.model):
@@ -303,7 +303,18 @@ def lift_single_view(
     T = keypoints.shape[0]
     kp, sc, t_idx = _view_people(keypoints, scores, rig)
     res = monocular_people(kp, sc, t_idx, T, rig, fps, floor, mono, cfg, joints=joints)
-    tracks = res.points
+    tracks, flags, ok = _smoothed(res.points, fps, cfg, temporal)
+    radius = _depth_radius(res.sigma, tracks, ok, rig, temporal, cfg.max_gap, guess)
+    _log_summary(res, radius, floor, mono, reads_floor)
+    views = np.where(ok, res.views, 0).astype(np.int32)
+    return _poses(tracks, flags, views, res, frames, fps, radius)
+
+
+def _smoothed(tracks, fps, cfg, temporal: bool):
+    """The runner's filters over the tracks (``temporal``); returns the tracks (NaN where
+    not finite), their flags (lifted / interpolated, 0 = none) and where they are finite."""
+    from rmpl.pipeline.runner import smooth
+
     interpolated = np.zeros(tracks.shape[:-1], bool)
     if temporal and len(tracks):
         tracks, interpolated = smooth(tracks, fps, cfg)
@@ -311,10 +322,7 @@ def lift_single_view(
     lifted = int(JointSource.LIFTED)
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, lifted, 0))
     tracks[~ok] = np.nan
-    radius = _depth_radius(res.sigma, tracks, ok, rig, temporal, cfg.max_gap, guess)
-    _log_summary(res, radius, floor, mono, reads_floor)
-    views = np.where(ok, res.views, 0).astype(np.int32)
-    return _poses(tracks, flags, views, res, frames, fps, radius)
+    return tracks, flags, ok
 
 
 def _view_people(keypoints: np.ndarray, scores: np.ndarray, rig: Rig):
@@ -351,7 +359,7 @@ def _depth_radius(sigma, tracks, ok, rig: Rig, temporal: bool, max_gap: int, gue
     log-depth sds (T, P); gap-filled frames (``temporal``) take their neighbours' spread."""
     sigma = sigma.copy()
     if temporal and len(tracks):
-        from rmpl.pipeline.filters import fill_gaps
+        from rmpl.filters import fill_gaps
 
         filled, _ = fill_gaps(sigma[..., None, None].repeat(3, -1), max_gap=max_gap)
         sigma = filled[..., 0, 0]

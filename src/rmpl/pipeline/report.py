@@ -552,9 +552,14 @@ def verdict_lines(report: RunReport) -> list[str]:
 
 
 def _markdown(r: RunReport) -> str:
+    md = _md_summary(r) + _md_people(r) + _md_disagreements(r)
+    md += _md_cameras(r) + _md_joints(r) + _md_definitions(r)
+    return "\n".join(md) + "\n"
+
+
+def _md_summary(r: RunReport) -> list[str]:
+    """report.md's title, floor, verdict and the one-camera statement."""
     p = r.poses
-    c = r.consistency
-    cfg = c.config if c else ConsistencyConfig()
     frames = f"{p.frames[0]}-{p.frames[-1]}" if p.num_frames else "none"
     fps = f"{p.fps:g} frames/s" if p.fps else "frame rate unknown"
     md = [
@@ -594,7 +599,11 @@ def _markdown(r: RunReport) -> str:
                 "body's shape.",
             ]
         md += [""]
-    md += ["## People", ""]
+    return md
+
+
+def _md_people(r: RunReport) -> list[str]:
+    md = ["## People", ""]
     md += _table(
         r.people,
         [
@@ -617,7 +626,11 @@ def _markdown(r: RunReport) -> str:
         md += ["", "Height unknown for " + "; ".join(unknown) + "."]
     if r.identity is not None:
         md += ["", "## Identities", ""] + _identity_lines(r.identity)
-    md += ["", "## View disagreements", ""]
+    return md
+
+
+def _md_disagreements(r: RunReport) -> list[str]:
+    md = ["", "## View disagreements", ""]
     if r.disagreements:
         md += _table(
             [{**d, "ranges_text": format_ranges(d["ranges"], limit=20)} for d in r.disagreements],
@@ -631,7 +644,12 @@ def _markdown(r: RunReport) -> str:
             ],
         )
     else:
-        md += ["None." if c is not None else "Not checked."]
+        md += ["None." if r.consistency is not None else "Not checked."]
+    return md
+
+
+def _md_cameras(r: RunReport) -> list[str]:
+    md = []
     if r.cameras:
         md += ["", "## Cameras", "", "Counts are person-frames (one person in one frame).", ""]
         md += _table(
@@ -650,6 +668,11 @@ def _markdown(r: RunReport) -> str:
                 ("reprojection_mm_median", "reproj. error median (mm)"),
             ],
         )
+    return md
+
+
+def _md_joints(r: RunReport) -> list[str]:
+    md = []
     if r.joints:
         md += ["", "## Joints", "", "Over every person, measured frame and view with 2D.", ""]
         cols = [
@@ -666,7 +689,12 @@ def _markdown(r: RunReport) -> str:
         if r.joints and "predicted_error_radius_mm" in r.joints[0]:
             cols.append(("predicted_error_radius_mm", "predicted 50% error radius (mm)"))
         md += _table(r.joints, cols)
-    md += ["", "## Definitions", ""]
+    return md
+
+
+def _md_definitions(r: RunReport) -> list[str]:
+    cfg = r.consistency.config if r.consistency else ConsistencyConfig()
+    md = ["", "## Definitions", ""]
     md += [f"- **{k.replace('_', ' ')}**: {v}." for k, v in _DEFINITIONS.items()]
     md += [
         f"- **threshold**: a view disagrees above {cfg.threshold:g} of the person's size "
@@ -677,7 +705,7 @@ def _markdown(r: RunReport) -> str:
     ]
     if r.notes:
         md += ["", "## Notes", ""] + [f"- {n}" for n in r.notes]
-    return "\n".join(md) + "\n"
+    return md
 
 
 _MERGE_TEXT = {

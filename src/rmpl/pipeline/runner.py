@@ -7,7 +7,7 @@ Each stage is a function usable on its own:
 2. :func:`estimate`: lift (RMPL) or triangulate every associated person, all frames batched.
 3. :func:`track_people`: identities over time (:mod:`rmpl.pipeline.tracking`).
 4. :func:`smooth`: outlier removal, gap filling (flagged as interpolated) and a zero-phase
-   Butterworth or a one-euro filter (:mod:`rmpl.pipeline.filters`).
+   Butterworth or a one-euro filter (:mod:`rmpl.filters`).
 
 :func:`run` chains them and returns a :class:`rmpl.io.poses.Poses3D`. It keeps, per track,
 frame and view, which 2D person of the input the track used (``membership``, from each
@@ -516,7 +516,7 @@ def smooth(
         smoothed (T, P, J, 3) and interpolated (T, P, J) bool: joints filled by the gap
         filler (they were missing before).
     """
-    from rmpl.pipeline import filters as temporal
+    from rmpl import filters as temporal
 
     x = tracks
     if config.hampel and len(x) >= 7:

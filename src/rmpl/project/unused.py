@@ -5,7 +5,7 @@
 nothing with 2D files; ``--fps`` nothing when the input states its frame rate.
 :func:`unused_options` lists each such option given (set away from its default) as one
 sentence; :func:`warn_unused_options` logs them at WARNING. The floor has its own messages
-(:func:`rmpl.cli._common.warn_unused_floor`, :func:`rmpl.pipeline.runner.run`).
+(:func:`rmpl.pipeline.job.estimate_poses`, :func:`rmpl.pipeline.runner.run`).
 """
 
 from __future__ import annotations
@@ -22,10 +22,10 @@ log = logging.getLogger(__name__)
 @functools.cache
 def _defaults() -> dict:
     """``rmpl run``'s defaults, from its own parser."""
-    from rmpl.cli.run import register
+    from rmpl.cli._run_arguments import add_run_arguments
 
     parser = argparse.ArgumentParser(add_help=False)
-    register(parser)
+    add_run_arguments(parser)
     return {a.dest: a.default for a in parser._actions}
 
 

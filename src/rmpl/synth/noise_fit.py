@@ -59,7 +59,7 @@ def load_shards(root: str | Path, keys: tuple[str, ...] | None = None) -> dict[s
     Raises:
         InputError: no shards in ``root``.
     """
-    from rmpl.synth.generate import list_shards
+    from rmpl.synth.shards import list_shards
 
     paths = list_shards(root)
     if not paths:

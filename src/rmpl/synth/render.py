@@ -559,17 +559,8 @@ class Renderer:
             many id masks (H, W) int16: the body each pixel shows, -1 for the background
             (exact without multisampling; with it, edge pixels may name a neighbour).
         """
-        vertices = np.asarray(vertices, dtype=np.float32)
-        colors = np.asarray(colors, dtype=np.float32)
-        if vertices.ndim != 4 or colors.shape != vertices.shape:
-            raise ValueError(
-                f"vertices and colors must have one shape (B, P, N, 3), got {vertices.shape} "
-                f"and {colors.shape}"
-            )
+        vertices, colors, present = _scene_arrays(vertices, colors, present)
         B, P, N = vertices.shape[:3]
-        present = np.ones((B, P), bool) if present is None else np.asarray(present, bool)
-        if present.shape != (B, P) or P > 254:
-            raise ValueError(f"present must have shape ({B}, {P}) with P <= 254")
         flat, flat_colors, K, R, t, size = _checked(
             vertices.reshape(B * P, N, 3), colors.reshape(B * P, N, 3), np.repeat(K, P, 0),
             np.repeat(R, P, 0), np.repeat(t, P, 0), np.repeat(size, P, 0), self.num_vertices,
@@ -581,13 +572,7 @@ class Renderer:
         normals = vertex_normals(flat, self._faces).reshape(B, P, N, 3)
         images, ids = [], []
         for b in range(B):
-            data = [
-                np.ascontiguousarray(
-                    np.concatenate([vertices[b, p], normals[b, p], colors[b, p]], axis=-1),
-                    dtype=np.float32,
-                ).tobytes()
-                for p in range(P)
-            ]  # (N, 9) per body
+            data = [_vertex_data(vertices[b, p], normals[b, p], colors[b, p]) for p in range(P)]
             self._set_lighting(lighting[b])
             for v in range(V):
                 i = b * P  # the cameras of scene b (repeated per body above)
@@ -623,3 +608,27 @@ class Renderer:
         self.ctx.disable(self._mgl.DEPTH_TEST)
         self._bg_vao.render(self._mgl.TRIANGLE_STRIP)
         tex.release()
+
+
+def _scene_arrays(vertices, colors, present):
+    """:meth:`Renderer.render_scene`'s bodies, checked: vertices and colours (B, P, N, 3)
+    float32, and which bodies each scene holds (B, P) bool."""
+    vertices = np.asarray(vertices, dtype=np.float32)
+    colors = np.asarray(colors, dtype=np.float32)
+    if vertices.ndim != 4 or colors.shape != vertices.shape:
+        raise ValueError(
+            f"vertices and colors must have one shape (B, P, N, 3), got {vertices.shape} "
+            f"and {colors.shape}"
+        )
+    B, P = vertices.shape[:2]
+    present = np.ones((B, P), bool) if present is None else np.asarray(present, bool)
+    if present.shape != (B, P) or P > 254:
+        raise ValueError(f"present must have shape ({B}, {P}) with P <= 254")
+    return vertices, colors, present
+
+
+def _vertex_data(vertices, normals, colors) -> bytes:
+    """One body's vertex buffer: position, normal, colour per vertex, (N, 9) float32."""
+    return np.ascontiguousarray(
+        np.concatenate([vertices, normals, colors], axis=-1), dtype=np.float32
+    ).tobytes()

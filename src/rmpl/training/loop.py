@@ -26,6 +26,7 @@ from rmpl.data.synthetic import PairSource, SamplerConfig
 from rmpl.errors import InputError
 from rmpl.geometry.triangulate import _dlt
 from rmpl.io.atomic import atomic_path
+from rmpl.model.checkpoint import load_checkpoint, write_checkpoint
 from rmpl.model.lifter import PRESETS, RMPL, RMPLConfig, build_model, camera_features
 from rmpl.skeleton import KP_STAR, skeleton_for
 from rmpl.synth.noise import NoiseConfig
@@ -183,73 +184,6 @@ def save_checkpoint(model: RMPL, path: str | Path, extra: dict | None = None) ->
         **(extra or {}),
     }
     write_checkpoint(model, path, meta)
-
-
-def write_checkpoint(model: torch.nn.Module, path: str | Path, meta: dict) -> None:
-    """A module's weights (``model.safetensors``) and ``meta`` (``config.json``) into
-    directory ``path``, each file atomically."""
-    from safetensors.torch import save_file
-
-    path = Path(path)
-    path.mkdir(parents=True, exist_ok=True)
-    tensors = {k: v.detach().contiguous() for k, v in model.state_dict().items()}
-    with atomic_path(path / "model.safetensors") as tmp:
-        save_file(tensors, str(tmp))
-    with atomic_path(path / "config.json") as tmp:
-        tmp.write_text(json.dumps(meta, indent=2))
-
-
-def load_checkpoint(path: str | Path) -> tuple[RMPL, dict]:
-    """Load a checkpoint directory written by :func:`save_checkpoint`.
-
-    Raises:
-        InputError: a missing, unreadable or damaged ``config.json`` or ``model.safetensors``,
-            or weights that do not fit the config; the message names the file.
-    """
-    path = Path(path)
-    cfg_file, weights = path / "config.json", path / "model.safetensors"
-    for f in (cfg_file, weights):
-        if not f.is_file():
-            raise InputError(
-                f, None, "a checkpoint file (a folder with config.json + model.safetensors)",
-                "no such file",
-            )  # fmt: skip
-    meta = _checkpoint_meta(cfg_file)
-    try:
-        model = build_model(RMPLConfig.from_dict(meta["model"]))
-    except (TypeError, ValueError, KeyError) as e:
-        raise InputError(cfg_file, "model", "an rmpl model configuration", e) from None
-    model.load_state_dict(_checkpoint_tensors(weights, model))
-    return model.eval(), meta
-
-
-def _checkpoint_meta(cfg_file: Path) -> dict:
-    try:
-        meta = json.loads(cfg_file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(cfg_file, None, "a readable checkpoint config.json", e) from None
-    except ValueError as e:
-        raise InputError(cfg_file, None, "valid JSON (an rmpl checkpoint)", e) from None
-    if not isinstance(meta, dict) or "model" not in meta:
-        raise InputError(cfg_file, "model", "a value (an rmpl checkpoint)", "no such key")
-    return meta
-
-
-def _checkpoint_tensors(weights: Path, model: RMPL) -> dict:
-    from safetensors.torch import load_file
-
-    try:
-        tensors = load_file(str(weights))
-    except Exception as e:  # noqa: BLE001 - SafetensorError and OSError, by version
-        raise InputError(weights, None, "safetensors weights (rmpl train)", e) from None
-    want = model.state_dict()
-    bad = sorted(
-        k for k in set(want) | set(tensors)
-        if k not in tensors or k not in want or tensors[k].shape != want[k].shape
-    )  # fmt: skip
-    if bad:
-        raise InputError(weights, None, "the tensors of the model in config.json", bad[:3])
-    return tensors
 
 
 def validation_sets(
@@ -543,14 +477,7 @@ def train(
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     model = build_model(cfg.model_config())
-    J = model.config.num_joints
-    for name, poses in (("training", poses_train), ("validation", poses_val)):
-        if np.shape(poses)[1:] != (J, 3):
-            raise InputError(
-                cfg.poses, "poses", f"{name} poses of {J} joints, as the model's "
-                f"{model.config.skeleton} (rmpl poses --body anny makes HALPE-26)",
-                np.shape(poses),
-            )  # fmt: skip
+    _check_poses(cfg, model, poses_train, poses_val)
     if cfg.init:
         init_from_checkpoint(model, cfg.init)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
@@ -592,6 +519,18 @@ def train(
     if math.isfinite(progress.running or 0):
         log.info("done: %s", out)
     return out
+
+
+def _check_poses(cfg: TrainConfig, model: RMPL, poses_train, poses_val) -> None:
+    """The pose banks must have the model's joint count (a HALPE-26 model needs HALPE-26)."""
+    J = model.config.num_joints
+    for name, poses in (("training", poses_train), ("validation", poses_val)):
+        if np.shape(poses)[1:] != (J, 3):
+            raise InputError(
+                cfg.poses, "poses", f"{name} poses of {J} joints, as the model's "
+                f"{model.config.skeleton} (rmpl poses --body anny makes HALPE-26)",
+                np.shape(poses),
+            )  # fmt: skip
 
 
 def _validate(model, sets, mhp_sets, tri, progress: _Progress, log_file: Path, bar) -> dict:

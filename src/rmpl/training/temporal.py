@@ -24,6 +24,8 @@ import torch
 from rmpl.data.sequences import SequenceBank, SequenceSource, TemporalNoise
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
+from rmpl.model.checkpoint import TEMPORAL_FORMAT as FORMAT
+from rmpl.model.checkpoint import load_checkpoint, load_temporal
 from rmpl.model.temporal import RADIUS_50, TemporalConfig, TemporalRMPL
 from rmpl.skeleton import KP_STAR, skeleton_for
 
@@ -37,8 +39,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-FORMAT = "rmpl-temporal-checkpoint-1"
 
 
 @dataclass(frozen=True)
@@ -177,8 +177,7 @@ def _load_bank(cfg: TemporalTrainConfig) -> tuple[SequenceBank, SequenceBank]:
 
 def build_temporal(cfg: TemporalTrainConfig) -> TemporalRMPL:
     """A new temporal model around the per-frame checkpoint ``cfg.frame_model``."""
-    from rmpl.inference import PRETRAINED
-    from rmpl.training.loop import load_checkpoint
+    from rmpl.models import PRETRAINED
 
     frame, _ = load_checkpoint(PRETRAINED.get(cfg.frame_model, Path(cfg.frame_model)))
     model = TemporalRMPL(frame, cfg.model_config())
@@ -190,7 +189,7 @@ def build_temporal(cfg: TemporalTrainConfig) -> TemporalRMPL:
 def _init_from(model: TemporalRMPL, name_or_path: str) -> None:
     """Copy the temporal stage of checkpoint ``name_or_path`` into ``model`` (see
     ``TemporalTrainConfig.init``); every tensor but the new floor input must fit."""
-    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
+    from rmpl.models import PRETRAINED_TEMPORAL
 
     path = Path(PRETRAINED_TEMPORAL.get(name_or_path, name_or_path))
     source, _ = load_temporal(path)
@@ -210,7 +209,7 @@ def _init_from(model: TemporalRMPL, name_or_path: str) -> None:
 
 def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = None) -> None:
     """Write ``model.safetensors`` (per-frame and temporal weights) and ``config.json``."""
-    from rmpl.training.loop import write_checkpoint
+    from rmpl.model.checkpoint import write_checkpoint
 
     meta = {
         "format": FORMAT,
@@ -222,33 +221,6 @@ def save_temporal(model: TemporalRMPL, path: str | Path, extra: dict | None = No
         **(extra or {}),
     }
     write_checkpoint(model, path, meta)
-
-
-def load_temporal(path: str | Path) -> tuple[TemporalRMPL, dict]:
-    """Load a checkpoint written by :func:`save_temporal`.
-
-    Raises:
-        InputError: a missing or damaged ``config.json`` / ``model.safetensors``, a per-frame
-            checkpoint where a temporal one is expected, or weights that do not fit.
-    """
-    from rmpl.model.lifter import RMPL, RMPLConfig
-    from rmpl.training.loop import _checkpoint_meta, _checkpoint_tensors
-
-    path = Path(path)
-    cfg_file, weights = path / "config.json", path / "model.safetensors"
-    for f in (cfg_file, weights):
-        if not f.is_file():
-            raise InputError(f, None, "a temporal checkpoint file", "no such file")
-    meta = _checkpoint_meta(cfg_file)
-    if meta.get("format") != FORMAT:
-        raise InputError(cfg_file, "format", FORMAT, meta.get("format"))
-    try:
-        frame = RMPL(RMPLConfig.from_dict(meta["model"]))
-        model = TemporalRMPL(frame, TemporalConfig.from_dict(meta["temporal"]))
-    except (TypeError, ValueError, KeyError) as e:
-        raise InputError(cfg_file, "temporal", "an rmpl temporal configuration", e) from None
-    model.load_state_dict(_checkpoint_tensors(weights, model))
-    return model.eval(), meta
 
 
 def _tensors(b) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:

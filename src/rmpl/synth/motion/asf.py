@@ -18,8 +18,6 @@ from rmpl.synth.motion._common import (
     _read_text,
 )
 from rmpl.synth.motion.kinematics import (
-    _amc_columns,
-    _asf_fk,
     _checked_scale,
     _euler,
     _points_z_up,
@@ -397,3 +395,56 @@ def load_asf_amc(
         str(amc),
         s,
     )
+
+
+def _amc_columns(skeleton: AsfSkeleton) -> dict[str, tuple[int, int]]:
+    """AMC line name -> (first column, number of values) of the per-frame vector."""
+    cols = {"root": (0, len(skeleton.root_order))}
+    start = len(skeleton.root_order)
+    for bone in skeleton.bones:
+        if bone.dofs:
+            cols[bone.name] = (start, len(bone.dofs))
+            start += len(bone.dofs)
+    return cols
+
+
+def _asf_fk(skeleton: AsfSkeleton, values: np.ndarray, angle: float):
+    """Forward kinematics in file units and axes.
+
+    values: AMC columns, shape (T, C). Returns joint names, parents, positions (T, J, 3) and
+    rest-relative rotations (T, J, 3, 3).
+    """
+    T = values.shape[0]
+    cols = _amc_columns(skeleton)
+    order = skeleton.root_order
+    t = np.broadcast_to(skeleton.root_position, (T, 3)).copy()
+    for k, ch in enumerate(order):
+        if ch[0] == "t":
+            t[:, "xyz".index(ch[1])] += values[:, k]
+    rot = [k for k, ch in enumerate(order) if ch[0] == "r"]
+    M = _euler(values[:, rot] * angle, "".join(order[k][1] for k in rot), fixed=True)
+    C0 = skeleton.root_axis
+    G = [C0 @ M @ C0.T]  # segment rotation per bone, root first
+    ends = [t]  # end point per bone (the root is a point)
+    names, parents, P, R = ["root"], [-1], [t], [G[0]]
+    has_child = {p for p in skeleton.parents if p >= 0}
+    for b, (bone, p) in enumerate(zip(skeleton.bones, skeleton.parents, strict=True)):
+        start, k = cols.get(bone.name, (0, 0))
+        Mb = _euler(
+            values[:, start : start + k] * angle, "".join(d[1] for d in bone.dofs), fixed=True
+        )
+        C = bone.axis
+        Gb = G[p + 1] @ C @ Mb @ C.T  # G[0] is the root, bone b is G[b + 1]
+        end = ends[p + 1] + bone.length * (Gb @ bone.direction)
+        G.append(Gb)
+        ends.append(end)
+        names.append(bone.name)
+        parents.append(names.index(skeleton.bones[p].name) if p >= 0 else 0)
+        P.append(ends[p + 1])
+        R.append(Gb)
+        if b not in has_child:
+            parents.append(len(names) - 1)
+            names.append(bone.name + "_end")
+            P.append(end)
+            R.append(Gb)
+    return tuple(names), tuple(parents), np.stack(P, axis=1), np.stack(R, axis=1)

@@ -14,8 +14,8 @@ from rmpl.synth.motion._common import (
     _read_text,
 )
 from rmpl.synth.motion.kinematics import (
-    _bvh_fk,
     _checked_scale,
+    _euler,
     _points_z_up,
     _rotations_z_up,
 )
@@ -207,3 +207,27 @@ def load_bvh(
         str(path),
         s,
     )
+
+
+def _bvh_fk(nodes: list[_BvhNode], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward kinematics in file units and axes. values: (T, C) -> positions (T, J, 3),
+    rotations (T, J, 3, 3). Position channels replace the OFFSET on their axis."""
+    T, col = values.shape[0], 0
+    P = np.empty((T, len(nodes), 3))
+    R = np.empty((T, len(nodes), 3, 3))
+    for j, node in enumerate(nodes):
+        v = values[:, col : col + len(node.channels)]
+        col += len(node.channels)
+        t = np.broadcast_to(node.offset, (T, 3)).copy()
+        rot = [k for k, c in enumerate(node.channels) if c[1] == "r"]
+        for k, c in enumerate(node.channels):
+            if c[1] == "p":
+                t[:, "xyz".index(c[0])] = v[:, k]
+        Rl = _euler(np.deg2rad(v[:, rot]), "".join(node.channels[k][0] for k in rot), fixed=False)
+        if node.parent < 0:
+            P[:, j], R[:, j] = t, Rl
+        else:
+            Rp = R[:, node.parent]
+            P[:, j] = P[:, node.parent] + np.einsum("tij,tj->ti", Rp, t)
+            R[:, j] = Rp @ Rl
+    return P, R

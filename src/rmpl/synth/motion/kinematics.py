@@ -6,7 +6,6 @@ from __future__ import annotations
 import logging
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,10 +16,6 @@ from rmpl.synth.motion._common import (
     TYPICAL_REST_HEIGHT,
     Y_UP_TO_Z_UP,
 )
-
-if TYPE_CHECKING:
-    from rmpl.synth.motion.asf import AsfSkeleton
-    from rmpl.synth.motion.bvh import _BvhNode
 
 _log = logging.getLogger(__name__)
 
@@ -123,80 +118,3 @@ def floor_height(positions: np.ndarray, percentile: float = 5.0) -> float:
     """Height of the floor a clip was captured on: a low percentile of the lowest joint of
     each frame, metres. positions: shape (T, J, 3), z up."""
     return float(np.percentile(positions[..., 2].min(axis=-1), percentile))
-
-
-def _amc_columns(skeleton: AsfSkeleton) -> dict[str, tuple[int, int]]:
-    """AMC line name -> (first column, number of values) of the per-frame vector."""
-    cols = {"root": (0, len(skeleton.root_order))}
-    start = len(skeleton.root_order)
-    for bone in skeleton.bones:
-        if bone.dofs:
-            cols[bone.name] = (start, len(bone.dofs))
-            start += len(bone.dofs)
-    return cols
-
-
-def _asf_fk(skeleton: AsfSkeleton, values: np.ndarray, angle: float):
-    """Forward kinematics in file units and axes.
-
-    values: AMC columns, shape (T, C). Returns joint names, parents, positions (T, J, 3) and
-    rest-relative rotations (T, J, 3, 3).
-    """
-    T = values.shape[0]
-    cols = _amc_columns(skeleton)
-    order = skeleton.root_order
-    t = np.broadcast_to(skeleton.root_position, (T, 3)).copy()
-    for k, ch in enumerate(order):
-        if ch[0] == "t":
-            t[:, "xyz".index(ch[1])] += values[:, k]
-    rot = [k for k, ch in enumerate(order) if ch[0] == "r"]
-    M = _euler(values[:, rot] * angle, "".join(order[k][1] for k in rot), fixed=True)
-    C0 = skeleton.root_axis
-    G = [C0 @ M @ C0.T]  # segment rotation per bone, root first
-    ends = [t]  # end point per bone (the root is a point)
-    names, parents, P, R = ["root"], [-1], [t], [G[0]]
-    has_child = {p for p in skeleton.parents if p >= 0}
-    for b, (bone, p) in enumerate(zip(skeleton.bones, skeleton.parents, strict=True)):
-        start, k = cols.get(bone.name, (0, 0))
-        Mb = _euler(
-            values[:, start : start + k] * angle, "".join(d[1] for d in bone.dofs), fixed=True
-        )
-        C = bone.axis
-        Gb = G[p + 1] @ C @ Mb @ C.T  # G[0] is the root, bone b is G[b + 1]
-        end = ends[p + 1] + bone.length * (Gb @ bone.direction)
-        G.append(Gb)
-        ends.append(end)
-        names.append(bone.name)
-        parents.append(names.index(skeleton.bones[p].name) if p >= 0 else 0)
-        P.append(ends[p + 1])
-        R.append(Gb)
-        if b not in has_child:
-            parents.append(len(names) - 1)
-            names.append(bone.name + "_end")
-            P.append(end)
-            R.append(Gb)
-    return tuple(names), tuple(parents), np.stack(P, axis=1), np.stack(R, axis=1)
-
-
-def _bvh_fk(nodes: list[_BvhNode], values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Forward kinematics in file units and axes. values: (T, C) -> positions (T, J, 3),
-    rotations (T, J, 3, 3). Position channels replace the OFFSET on their axis."""
-    T, col = values.shape[0], 0
-    P = np.empty((T, len(nodes), 3))
-    R = np.empty((T, len(nodes), 3, 3))
-    for j, node in enumerate(nodes):
-        v = values[:, col : col + len(node.channels)]
-        col += len(node.channels)
-        t = np.broadcast_to(node.offset, (T, 3)).copy()
-        rot = [k for k, c in enumerate(node.channels) if c[1] == "r"]
-        for k, c in enumerate(node.channels):
-            if c[1] == "p":
-                t[:, "xyz".index(c[0])] = v[:, k]
-        Rl = _euler(np.deg2rad(v[:, rot]), "".join(node.channels[k][0] for k in rot), fixed=False)
-        if node.parent < 0:
-            P[:, j], R[:, j] = t, Rl
-        else:
-            Rp = R[:, node.parent]
-            P[:, j] = P[:, node.parent] + np.einsum("tij,tj->ti", Rp, t)
-            R[:, j] = Rp @ Rl
-    return P, R
