@@ -4,7 +4,10 @@
 error of every board corner seen, with a sparse Jacobian (``jac_sparsity``: a corner's two
 residuals depend only on its camera and its board pose) and a robust loss (``soft_l1``,
 scale 1 px). Unknowns: each camera's pose (the reference camera's is fixed: it sets the
-frame), optionally its lens (fx, fy, cx, cy, k1, k2, p1, p2, k3), and each board pose. The
+frame), optionally its lens (fx, fy, cx, cy, k1, k2, p1, p2, k3), and each board pose.
+A lens that is adjusted keeps its own calibration as a Gaussian prior (OpenCV's standard
+deviations of each parameter), so views that disagree across cameras (a board moving
+between unsynchronised frames) cannot drag it where its own images say it is not. The
 scale comes from the board's squares.
 
 Rules fixed in advance: after a first solve, every view (one camera at one instant) whose
@@ -80,8 +83,9 @@ class Adjusted:
 
 
 class _Problem:
-    def __init__(self, obs: Observations, V: int, P: int, ref: int, free_lens: bool):
+    def __init__(self, obs: Observations, V: int, P: int, ref: int, free_lens: bool, prior=None):
         self.obs, self.V, self.P, self.ref, self.free = obs, V, P, ref, free_lens
+        self.prior = prior  # (lens values (V, 9), their standard deviations (V, 9)) or None
         self.nlens = 9 if free_lens else 0
         self.ncam = 6 + self.nlens
         self.cam_cols = [None if v == ref else v for v in range(V)]
@@ -124,7 +128,11 @@ class _Problem:
         uv = np.stack(
             [Ks[:, 0, 0] * xy[:, 0] + Ks[:, 0, 2], Ks[:, 1, 1] * xy[:, 1] + Ks[:, 1, 2]], 1
         )
-        return (uv - o.pixels).ravel()
+        res = (uv - o.pixels).ravel()
+        if self.prior is None or not self.free:
+            return res
+        lens = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K, dist)])
+        return np.concatenate([res, ((lens - self.prior[0]) / self.prior[1]).ravel()])
 
     def sparsity(self) -> sp.csr_matrix:
         o, n = self.obs, len(self.obs.cam)
@@ -142,13 +150,19 @@ class _Problem:
                 rows.append(r[keep]), cols.append(np.array(starts)[o.cam][keep] + j)
             for j in range(6):
                 rows.append(r), cols.append(board0 + 6 * o.pose + j)
+        nrows = 2 * n
+        if self.prior is not None and self.free:
+            for v in range(self.V):
+                first = starts[v] + (0 if v == self.ref else 6)
+                rows.append(nrows + 9 * v + np.arange(9)), cols.append(first + np.arange(9))
+            nrows += 9 * self.V
         rows, cols = np.concatenate(rows), np.concatenate(cols)
-        shape = (2 * n, board0 + 6 * self.P)
+        shape = (nrows, board0 + 6 * self.P)
         return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=shape), board0
 
 
 def _view_rms(res: np.ndarray, obs: Observations) -> dict[tuple[int, int], float]:
-    sq = res.reshape(-1, 2) ** 2
+    sq = res[: 2 * len(obs.cam)].reshape(-1, 2) ** 2
     out: dict[tuple[int, int], float] = {}
     key = obs.cam * 1_000_000 + obs.pose
     for k in np.unique(key):
@@ -181,6 +195,7 @@ def adjust(
     names: list[str],
     *,
     free_lens: bool = True,
+    lens_std: list[np.ndarray | None] | None = None,
 ) -> Adjusted:
     """Adjust cameras (and lenses when ``free_lens``) and board poses together.
 
@@ -189,7 +204,8 @@ def adjust(
     """
     V, P = len(K0), len(T_wb0)
     dist0 = [np.pad(np.ravel(d)[:5], (0, 5 - min(5, np.ravel(d).size))) for d in dist0]
-    prob = _Problem(obs, V, P, ref, free_lens)
+    prior = _prior(K0, dist0, lens_std)
+    prob = _Problem(obs, V, P, ref, free_lens, prior)
     x0 = prob.pack(K0, dist0, T_cw0, T_wb0)
     sol = _solve(prob, x0, K0, dist0)
     views = _view_rms(sol.fun, obs)
@@ -199,7 +215,7 @@ def adjust(
     if bad:
         keep = np.array([(c, p) not in bad for c, p in zip(obs.cam, obs.pose, strict=True)])
         obs = _subset(obs, keep)
-        prob = _Problem(obs, V, P, ref, free_lens)
+        prob = _Problem(obs, V, P, ref, free_lens, prior)
         sol = _solve(prob, sol.x, K0, dist0)
         views = _view_rms(sol.fun, obs)
     K, dist, rc, tc, boards = prob.unpack(sol.x, K0, dist0)
@@ -212,6 +228,16 @@ def adjust(
     return Adjusted(K, [np.asarray(d) for d in dist], T_cw, T_wb, rms, cov, dropped, views)
 
 
+def _prior(K0, dist0, lens_std):
+    """Each lens's calibration as a prior: its values and OpenCV's standard deviations
+    (floored at 1e-6 of the value's scale), or None when a lens has none."""
+    if lens_std is None or any(s is None or not np.all(np.isfinite(s)) for s in lens_std):
+        return None
+    values = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K0, dist0)])
+    floor = np.r_[np.full(4, 1e-3), np.full(5, 1e-6)]
+    return values, np.maximum(np.stack(lens_std), floor)
+
+
 def _mat(R, t):
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, t
@@ -219,7 +245,7 @@ def _mat(R, t):
 
 
 def _rms(res: np.ndarray, mask: np.ndarray) -> float:
-    r = res.reshape(-1, 2)[mask]
+    r = res[: 2 * len(mask)].reshape(-1, 2)[mask]
     return float(np.sqrt((r**2).sum(1).mean())) if len(r) else float("nan")
 
 

@@ -207,7 +207,8 @@ def _extrinsics(board, names, ext, separate, lenses, free_lens, origin, start) -
     ]
     obs, T_wb0, instants = _observations(board, ext, separate, chain, poses_sep)
     adj = adjust(obs, [ln.K for ln in lenses], [ln.dist for ln in lenses], chain.T_cw, T_wb0,
-                 chain.reference, names, free_lens=free_lens)  # fmt: skip
+                 chain.reference, names, free_lens=free_lens,
+                 lens_std=[ln.std for ln in lenses])  # fmt: skip
     camera = parse_origin(origin, names)
     if camera is None:
         seen = {f: sum(f in c.views for c in ext) for f in instants}

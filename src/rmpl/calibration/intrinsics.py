@@ -33,6 +33,7 @@ class Intrinsics:
         size: (width, height). fisheye: which model.
         rms: reprojection RMS of the images used, pixels.
         used, dropped: image names; errors: each used image's RMS, pixels.
+        std: OpenCV's standard deviations of fx, fy, cx, cy, k1, k2, p1, p2, k3 (pinhole).
     """
 
     K: np.ndarray
@@ -43,6 +44,7 @@ class Intrinsics:
     used: list[str] = field(default_factory=list)
     dropped: list[str] = field(default_factory=list)
     errors: list[float] = field(default_factory=list)
+    std: np.ndarray | None = None
 
 
 def _cv2():
@@ -63,11 +65,13 @@ def _calibrate(obj, img, size, fisheye: bool, K0=None):
         )
     else:
         flags = 0 if K0 is None else cv2.CALIB_USE_INTRINSIC_GUESS
-        _, K, d, rv, tv = cv2.calibrateCamera(
+        out = cv2.calibrateCameraExtended(
             [o.astype(np.float32) for o in obj], [i.astype(np.float32) for i in img], size,
             None if K0 is None else K0.copy(), None, flags=flags,
         )  # fmt: skip
-    return K, np.ravel(d), rv, tv
+        _, K, d, rv, tv, std = out[:6]
+        return K, np.ravel(d), rv, tv, np.ravel(std)[:9]
+    return K, np.ravel(d), rv, tv, np.full(8, np.nan)
 
 
 def image_errors(obj, img, K, dist, rvecs, tvecs, fisheye: bool = False) -> np.ndarray:
@@ -117,7 +121,7 @@ def calibrate_intrinsics(
     dropped: list[str] = []
     for round_ in range(_ROUNDS + 1):
         try:
-            K, d, rv, tv = _calibrate(
+            K, d, rv, tv, std = _calibrate(
                 [obj[n] for n in names], [img[n] for n in names], size, fisheye
             )
         except Exception as e:  # cv2.error: a degenerate set of views
@@ -133,4 +137,4 @@ def calibrate_intrinsics(
         names = [n for n, b in zip(names, bad, strict=True) if not b]
     n_pts = np.array([len(img[n]) for n in names])
     rms = float(np.sqrt(np.sum(err**2 * n_pts) / n_pts.sum()))
-    return Intrinsics(K, d, tuple(size), fisheye, rms, names, dropped, err.tolist())
+    return Intrinsics(K, d, tuple(size), fisheye, rms, names, dropped, err.tolist(), std)
