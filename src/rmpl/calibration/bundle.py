@@ -131,7 +131,9 @@ class _Problem:
         res = (uv - o.pixels).ravel()
         if self.prior is None or not self.free:
             return res
-        lens = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K, dist)])
+        lens = np.array(
+            [[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K, dist, strict=True)]
+        )
         return np.concatenate([res, ((lens - self.prior[0]) / self.prior[1]).ravel()])
 
     def sparsity(self) -> sp.csr_matrix:
@@ -233,7 +235,9 @@ def _prior(K0, dist0, lens_std):
     (floored at 1e-6 of the value's scale), or None when a lens has none."""
     if lens_std is None or any(s is None or not np.all(np.isfinite(s)) for s in lens_std):
         return None
-    values = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K0, dist0)])
+    values = np.array(
+        [[k[0, 0], k[1, 1], k[0, 2], k[1, 2], *d] for k, d in zip(K0, dist0, strict=True)]
+    )
     floor = np.r_[np.full(4, 1e-3), np.full(5, 1e-6)]
     return values, np.maximum(np.stack(lens_std), floor)
 

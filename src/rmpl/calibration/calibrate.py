@@ -122,7 +122,8 @@ def calibrate_boards(
         raise InputError(None, "--extrinsics", "at least one folder of images or video", "none")
     names = source_names(sources)
     ext = [
-        read_views(p, board, n, progress=progress) for p, n in zip(extrinsics, names, strict=True)
+        read_views(p, board, n, progress=progress)
+        for p, n in zip(extrinsics, names[: len(extrinsics)], strict=True)
     ]
     lenses, separate = _lenses(board, names, ext, list(intrinsics) if extrinsics else sources,
                                calib, fisheye, progress)  # fmt: skip

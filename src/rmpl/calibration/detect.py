@@ -59,12 +59,14 @@ def sharpness(gray: np.ndarray) -> float:
     return float(cv2.Laplacian(small, cv2.CV_64F).var())
 
 
-def detect(image: np.ndarray, board: Board) -> Detection | None:
+def detect(image: np.ndarray, board: Board, *, thorough: bool = False) -> Detection | None:
     """The board's inner corners in one image, or None when too few are found.
 
     Args:
         image: grey (H, W) or RGB (H, W, 3) uint8.
         board: the printed board.
+        thorough: a checkerboard not found at once is searched again exhaustively
+            (``CALIB_CB_EXHAUSTIVE``, slower): for photos, where each one counts.
 
     Returns:
         The corners found (at least ``board.min_corners``, not all on one line), or None.
@@ -76,7 +78,12 @@ def detect(image: np.ndarray, board: Board) -> Detection | None:
         (board.inverted,) if board.kind == "checkerboard" else (board.inverted, not board.inverted)
     )
     for inverted in tries:
-        found = find(255 - gray if inverted else gray, board)
+        g = 255 - gray if inverted else gray
+        found = (
+            _find_checkerboard(g, board, None, thorough)
+            if board.kind == "checkerboard"
+            else find(g, board)
+        )
         if found is not None and len(found[0]) >= board.min_corners and _spread(found[1]):
             return Detection(found[0], found[1], inverted)
     return None
@@ -88,10 +95,13 @@ def _spread(corners: np.ndarray) -> bool:
     return bool(np.sqrt(np.linalg.eigvalsh(c.T @ c / len(c))[0]) > 1.0)
 
 
-def _find_checkerboard(gray: np.ndarray, board: Board, size=None):
+def _find_checkerboard(gray: np.ndarray, board: Board, size=None, thorough: bool = False):
     cv2 = _cv2()
     size = size or board.inner
     ok, corners = cv2.findChessboardCornersSB(gray, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not ok and thorough:
+        flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE
+        ok, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
     if not ok or corners is None:
         return None
     corners = _refine(gray, corners.reshape(-1, 2), size[0], 0.25)

@@ -126,7 +126,7 @@ def read_views(
                 raise InputError(path / label if path.is_dir() else path, "size",
                                  f"{out.size[0]}x{out.size[1]} like the camera's other images",
                                  f"{size[0]}x{size[1]}")  # fmt: skip
-            found = detect(gray, board)
+            found = detect(gray, board, thorough=path.is_dir())
             out.labels[i], out.searched = label, out.searched + 1
             out.sharp[i] = sharpness(gray)
             if found is not None:
