@@ -37,15 +37,17 @@ def pose2sim(root: Path) -> dict:
     board = parse_board("checkerboard:4x7:0.06")
     truth = load_rig(base / "Calib.qca.txt")
     folders = sorted(p for p in (base / "intrinsics").iterdir() if p.is_dir())
+    opencv = []
+    for folder in folders:  # OpenCV alone first, on every photo with the board
+        views = read_views(folder, board, folder.name, progress=False)
+        obj = [board.points[d.ids].astype(np.float32) for d in views.views.values()]
+        img = [d.corners.astype(np.float32) for d in views.views.values()]
+        opencv.append((cv2.calibrateCamera(obj, img, views.size, None, None)[1], len(obj)))
     start = time.perf_counter()
     cal = calibrate_boards(board, folders, [], progress=False)
     seconds = time.perf_counter() - start
     out = {"seconds": round(seconds, 1), "cameras": {}}
-    for v, folder in enumerate(folders):
-        views = read_views(folder, board, folder.name, progress=False)
-        obj = [board.points[d.ids].astype(np.float32) for d in views.views.values()]
-        img = [d.corners.astype(np.float32) for d in views.views.values()]
-        _, K_cv, _, _, _ = cv2.calibrateCamera(obj, img, views.size, None, None)
+    for v, (K_cv, n_images) in enumerate(opencv):
         true = truth[v]
         row = {}
         for name, K in (("rmpl", cal.rig[v].K), ("opencv", K_cv)):
@@ -53,7 +55,7 @@ def pose2sim(root: Path) -> dict:
                 "focal_pct": round(float((K[0, 0] / true.K[0, 0] - 1) * 100), 3),
                 "pp_px": round(float(np.linalg.norm(K[:2, 2] - true.K[:2, 2])), 1),
             }
-        row["images"] = len(views.views)
+        row["images"] = n_images
         row["dropped"] = cal.lenses[v].dropped
         row["rms_px"] = round(cal.lenses[v].rms, 3)
         out["cameras"][true.name] = row
