@@ -84,9 +84,27 @@ def detect(image: np.ndarray, board: Board, *, thorough: bool = False) -> Detect
             if board.kind == "checkerboard"
             else find(g, board)
         )
-        if found is not None and len(found[0]) >= board.min_corners and _spread(found[1]):
+        if (
+            found is not None and len(found[0]) >= board.min_corners and _spread(found[1])
+            and _grid_like(board, *found)
+        ):  # fmt: skip
             return Detection(found[0], found[1], inverted)
     return None
+
+
+def _grid_like(board: Board, ids: np.ndarray, corners: np.ndarray) -> bool:
+    """The corners fit the board through one homography to within a quarter of a square:
+    a grid read in a wrong order (or a misread marker) does not, whatever the lens."""
+    cv2 = _cv2()
+    src = board.points[ids, :2].astype(np.float64)
+    H, _ = cv2.findHomography(src, corners.astype(np.float64), 0)
+    if H is None:
+        return False
+    p = cv2.perspectiveTransform(src.reshape(-1, 1, 2), H).reshape(-1, 2)
+    err = float(np.sqrt(np.mean(np.sum((p - corners) ** 2, axis=1))))
+    ref = cv2.perspectiveTransform((src + [board.square, 0]).reshape(-1, 1, 2), H).reshape(-1, 2)
+    square_px = float(np.median(np.linalg.norm(ref - p, axis=1)))
+    return err < 0.25 * square_px
 
 
 def _spread(corners: np.ndarray) -> bool:

@@ -22,6 +22,7 @@ __all__ = ["MIN_IMAGES", "Intrinsics", "calibrate_intrinsics", "image_errors"]
 #: Fewest images with the board that a camera's intrinsics are computed from.
 MIN_IMAGES = 4
 _DROP_PX, _DROP_RATIO, _ROUNDS = 1.0, 3.0, 3
+_FAILED_PX = 3.0  # an RMS no sub-pixel corner detection explains: a failed fit
 
 
 @dataclass
@@ -53,7 +54,7 @@ def _cv2():
     return cv2
 
 
-def _calibrate(obj, img, size, fisheye: bool, K0=None):
+def _calibrate(obj, img, size, fisheye: bool):
     cv2 = _cv2()
     if fisheye:
         flags = cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC | cv2.fisheye.CALIB_FIX_SKEW
@@ -64,11 +65,14 @@ def _calibrate(obj, img, size, fisheye: bool, K0=None):
             obj, img, size, None, None, flags=flags, criteria=criteria
         )
     else:
-        flags = 0 if K0 is None else cv2.CALIB_USE_INTRINSIC_GUESS
-        out = cv2.calibrateCameraExtended(
-            [o.astype(np.float32) for o in obj], [i.astype(np.float32) for i in img], size,
-            None if K0 is None else K0.copy(), None, flags=flags,
-        )  # fmt: skip
+        obj32 = [o.astype(np.float32) for o in obj]
+        img32 = [i.astype(np.float32) for i in img]
+        out = cv2.calibrateCameraExtended(obj32, img32, size, None, None)
+        if not out[0] < _FAILED_PX:  # the optimiser lost its way: start it from a homography
+            guess = cv2.initCameraMatrix2D(obj32, img32, size)
+            flags = cv2.CALIB_USE_INTRINSIC_GUESS
+            retry = cv2.calibrateCameraExtended(obj32, img32, size, guess, None, flags=flags)
+            out = retry if retry[0] < out[0] else out
         _, K, d, rv, tv, std = out[:6]
         return K, np.ravel(d), rv, tv, np.ravel(std)[:9]
     return K, np.ravel(d), rv, tv, np.full(8, np.nan)
