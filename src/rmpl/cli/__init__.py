@@ -12,20 +12,22 @@ from rmpl.errors import InputError
 
 __all__ = ["main"]
 
-COMMANDS = {
+COMMANDS = {  # in the order of the user's chain, then the tools
+    "calibrate": "rmpl.cli.calibrate",
+    "sync": "rmpl.cli.sync",
+    "run": "rmpl.cli.run",
+    "batch": "rmpl.cli.batch",
+    "lift": "rmpl.cli.lift",
     "triangulate": "rmpl.cli.triangulate",
     "convert-calib": "rmpl.cli.convert_calib",
-    "lift": "rmpl.cli.lift",
-    "poses": "rmpl.cli.poses",
-    "train": "rmpl.cli.train",
     "evaluate": "rmpl.cli.evaluate",
-    "bench": "rmpl.cli.bench",
     "example": "rmpl.cli.example",
     "models": "rmpl.cli.models",
-    "run": "rmpl.cli.run",
-    "generate": "rmpl.cli.generate",
-    "batch": "rmpl.cli.batch",
+    "bench": "rmpl.cli.bench",
     "benchmark": "rmpl.cli.benchmark",
+    "poses": "rmpl.cli.poses",
+    "generate": "rmpl.cli.generate",
+    "train": "rmpl.cli.train",
 }
 
 
