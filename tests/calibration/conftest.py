@@ -1,5 +1,5 @@
 """A tiny rendered board set, shared by the calibration tests: three 480x360 cameras with
-distortion, eight close-up views each and seven shared views (the first on the floor)."""
+distortion, eight close-up views each and ten shared views (the first on the floor)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ def _tiny(kind: str):
     board = parse_board(spec)
     scene = make_scene(
         board, cameras=3, size=(480, 360), focal=420.0, intrinsics_views=8,
-        extrinsics_views=7, radius=2.0, height=1.3, seed=3,
+        extrinsics_views=10, radius=2.0, height=1.3, seed=3,
     )  # fmt: skip
     return spec, scene
 
