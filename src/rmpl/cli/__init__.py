@@ -23,6 +23,7 @@ COMMANDS = {
     "example": "rmpl.cli.example",
     "run": "rmpl.cli.run",
     "generate": "rmpl.cli.generate",
+    "sync": "rmpl.cli.sync",
 }
 
 
