@@ -61,7 +61,8 @@ PROPORTION_SD = 0.04
 MIN_SCORE = 0.3
 RANSAC_PX = 4.0
 MIN_COMMON = 60  # joint correspondences a pair of tracks needs
-MATCH_FRACTION = 0.6  # of a track pair's joints within RANSAC_PX of a view pair's matrix
+HYPOTHESIS_POINTS = 1000  # joints of a track pair a hypothesis is fitted on
+SUPPORT_PX = 10.0  # median Sampson distance of a track pair of one person
 J17 = 17
 
 
@@ -125,66 +126,98 @@ def _sampson(E: np.ndarray, xa: np.ndarray, xb: np.ndarray) -> np.ndarray:
 
 
 def _pair_matrix(tracks_a, tracks_b, focal: float):
-    """The best essential matrix of a pair of views and the track pairs it matches:
-    (inliers, E, [(i, j, fraction)])."""
+    """The essential matrix of a pair of views and the track pairs it matches:
+    (inliers, E, [(i, j, fraction)], {(i, j) of the track pairs seen together}).
+
+    Every pair of tracks seen together gives a hypothesis (RANSAC on its joints); a
+    hypothesis is supported by the track pairs whose median Sampson distance is under
+    :data:`SUPPORT_PX` (the same person, whoever it is), weighed by their joints. The
+    best supported is fitted again on all its supporters' joints at once: one person's
+    joints alone span too little to fix the matrix, several people together do.
+    """
     import cv2
 
     thr = RANSAC_PX / focal
-    best = (0, None)
-    for i in range(tracks_a.shape[1]):
-        for j in range(tracks_b.shape[1]):
-            xa, xb, _ = _common(tracks_a[:, i], tracks_b[:, j])
-            if len(xa) < MIN_COMMON:
-                continue
-            E, mask = cv2.findEssentialMat(xa, xb, np.eye(3), cv2.RANSAC, 0.999, thr)
-            if E is None or E.shape != (3, 3):
-                continue
-            n = int(mask.sum())
-            if n > best[0]:
-                best = (n, E)
-    if best[1] is None:
-        return 0, None, []
-    E, matches = best[1], []
+    cands = []
     for i in range(tracks_a.shape[1]):
         for j in range(tracks_b.shape[1]):
             xa, xb, _ = _common(tracks_a[:, i], tracks_b[:, j])
             if len(xa) >= MIN_COMMON // 2:
-                frac = float((_sampson(E, xa, xb) < thr).mean())
-                if frac >= MATCH_FRACTION:
-                    matches.append((i, j, frac))
-    return best[0], E, matches
+                cands.append((i, j, xa, xb))
+    best = (0, None, [])
+    for _i, _j, xa, xb in cands:
+        if len(xa) < MIN_COMMON:
+            continue
+        if len(xa) > HYPOTHESIS_POINTS:  # spread over the track, the same every run
+            k = np.linspace(0, len(xa) - 1, HYPOTHESIS_POINTS).round().astype(int)
+            xa, xb = xa[k], xb[k]
+        E, _ = cv2.findEssentialMat(xa, xb, np.eye(3), cv2.RANSAC, 0.999, thr)
+        if E is None or E.shape != (3, 3):
+            continue
+        E = E[:3]
+        sup = _support(E, cands, focal)
+        score = sum(len(c[2]) for c in sup)
+        if score > best[0]:
+            best = (score, E, sup)
+    together = {(i, j) for i, j, *_ in cands}
+    if best[1] is None:
+        return 0, None, [], together
+    E, sup = best[1], best[2]
+    for _ in range(2):  # refit on every supporter, then take the supporters again
+        xa = np.concatenate([c[2] for c in sup])
+        xb = np.concatenate([c[3] for c in sup])
+        E2, mask = cv2.findEssentialMat(xa, xb, np.eye(3), cv2.RANSAC, 0.999, thr)
+        if E2 is None or E2.shape != (3, 3):
+            break
+        E, n = E2, int(mask.sum())
+        sup = _support(E, cands, focal) or sup
+    matches = [(i, j, float((_sampson(E, xa, xb) < thr).mean())) for i, j, xa, xb in sup]
+    return n, E, matches, together
+
+
+def _support(E: np.ndarray, cands: list, focal: float) -> list:
+    return [c for c in cands if np.median(_sampson(E, c[2], c[3])) * focal < SUPPORT_PX]
 
 
 def _people_matches(tracks, focal: np.ndarray, with_pairs: bool = False):
     """Matching track pairs per pair of views ({(a, b): [(i, j, fraction)]}), from each
     pair's best essential matrix; with ``with_pairs`` also {(a, b): (inliers, E)}."""
     V = len(tracks)
-    pairs, matches = {}, {}
+    pairs, matches, together = {}, {}, {}
     for a in range(V):
         for b in range(a + 1, V):
-            n, E, ms = _pair_matrix(tracks[a], tracks[b], float(np.mean(focal[[a, b]])))
+            n, E, ms, tog = _pair_matrix(tracks[a], tracks[b], float(np.mean(focal[[a, b]])))
+            together[(a, b)] = tog
             if E is not None:
                 pairs[(a, b)], matches[(a, b)] = (n, E), ms
             log.debug("views %d-%d: %d inliers, %d matched track pairs", a, b, n, len(ms))
-    return (pairs, matches) if with_pairs else matches
+    return (pairs, matches, together) if with_pairs else (matches, together)
 
 
-def _group(tracks, matches: dict) -> list[dict[int, list[int]]]:
+def _group(tracks, matches: dict, together: dict) -> list[dict[int, list[int]]]:
     """People: groups of (view, track) joined by matching track pairs, strongest first,
-    never two tracks of one view seen at the same time."""
+    never two tracks of one view seen at the same time, and never two tracks of two views
+    that were seen together without matching (a merge must hold for every pair of views,
+    not only for the link that proposes it)."""
+    matched = {(a, i, b, j) for (a, b), ms in matches.items() for i, j, _ in ms}
     seen = [np.isfinite(tr).all(-1).any(-1) for tr in tracks]  # (T, Q) per view
     owner: dict[tuple[int, int], int] = {}
     groups: list[dict[int, list[int]]] = []
     links = sorted(
-        ((f, a, i, b, j) for (a, b), ms in matches.items() for i, j, f in ms), reverse=True
+        ((f, a, i, b, j) for (a, b), ms in matches.items() for i, j, f in ms),
+        reverse=True,
     )
     for _, a, i, b, j in links:
         ga, gb = owner.get((a, i)), owner.get((b, j))
         if ga is not None and ga == gb:
             continue
+        parts = [
+            groups[g] if g is not None else {k[0]: [k[1]]} for g, k in ((ga, (a, i)), (gb, (b, j)))
+        ]
+        if not _consistent(parts[0], parts[1], together, matched):
+            continue
         merged: dict[int, list[int]] = {}
-        for g, key in ((ga, (a, i)), (gb, (b, j))):
-            part = groups[g] if g is not None else {key[0]: [key[1]]}
+        for part in parts:
             for v, qs in part.items():
                 merged.setdefault(v, []).extend(qs)
         if any(_overlap(seen[v], qs) for v, qs in merged.items()):
@@ -198,21 +231,38 @@ def _group(tracks, matches: dict) -> list[dict[int, list[int]]]:
     return [g for g in groups if len(g) >= 2]
 
 
+def _consistent(g1: dict, g2: dict, together: dict, matched: set) -> bool:
+    for v, qs in g1.items():
+        for w, rs in g2.items():
+            if v == w:
+                continue
+            a, b = min(v, w), max(v, w)
+            for q in qs:
+                for r in rs:
+                    i, j = (q, r) if v < w else (r, q)
+                    if (i, j) in together.get((a, b), ()) and (a, i, b, j) not in matched:
+                        return False
+    return True
+
+
 def _overlap(seen: np.ndarray, qs: list[int]) -> bool:
     return len(qs) > 1 and bool((seen[:, qs].sum(-1) > 1).any())
 
 
-def _observations(tracks, groups, V: int) -> np.ndarray:
-    """The people's 2D, shape (T, G, V, J, 2), normalised; NaN where unseen."""
+def _observations(tracks, groups, V: int) -> tuple[np.ndarray, np.ndarray]:
+    """The people's 2D, shape (T, G, V, J, 2), normalised, NaN where unseen; and the
+    track (an id unique over views) each comes from, (T, G, V), -1 where none."""
     T = len(tracks[0])
     obs = np.full((T, len(groups), V, J17, 2), np.nan)
+    ids = np.full((T, len(groups), V), -1)
     for g, members in enumerate(groups):
         for v, qs in members.items():
             for q in qs:
                 x = tracks[v][:, q]
                 ok = np.isfinite(x).all(-1)
                 obs[:, g, v][ok] = x[ok]
-    return obs
+                ids[ok.any(-1), g, v] = v * 100000 + q
+    return obs, ids
 
 
 # --------------------------------------------------------------------------- geometry
@@ -277,7 +327,7 @@ def _start(tracks, rig, source):
 
     V = len(rig)
     focal = np.array([float(np.mean(np.diag(c.K)[:2])) for c in rig])
-    pairs, matches = _people_matches(tracks, focal, with_pairs=True)
+    pairs, matches, together = _people_matches(tracks, focal, with_pairs=True)
     if not pairs:
         raise InputError(
             source,
@@ -286,8 +336,8 @@ def _start(tracks, rig, source):
             f"at least {MIN_COMMON} joints over the frames",
             "none",
         )
-    groups = _group(tracks, matches)
-    obs = _observations(tracks, groups, V)
+    groups = _group(tracks, matches, together)
+    obs, ids = _observations(tracks, groups, V)
     (a, b), (n, E) = max(pairs.items(), key=lambda kv: kv[1][0])
     xa, xb = obs[:, :, a].reshape(-1, 2), obs[:, :, b].reshape(-1, 2)
     ok = np.isfinite(xa).all(-1) & np.isfinite(xb).all(-1)
@@ -314,7 +364,7 @@ def _start(tracks, rig, source):
         c, (Rc, tc, _) = best
         R[c], t[c] = Rc, tc
         placed.add(c)
-    return R, t, groups, obs, a, b
+    return R, t, groups, (obs, ids), a, b
 
 
 # --------------------------------------------------------------------------- adjustment
@@ -328,7 +378,7 @@ def _frames(obs: np.ndarray, max_frames: int) -> np.ndarray:
     return frames
 
 
-def _problem(obs: np.ndarray, X: np.ndarray, focal: np.ndarray):
+def _problem(obs: np.ndarray, X: np.ndarray, focal: np.ndarray, ids: np.ndarray):
     """The bundle problem of the frames' observations (T', G, V, J, 2) and start X."""
     from rmpl.calibration.people_bundle import BONES, BundleProblem
 
@@ -347,6 +397,7 @@ def _problem(obs: np.ndarray, X: np.ndarray, focal: np.ndarray):
     prob = BundleProblem(
         v, index[t, g, j], obs[t, g, v, j], focal, np.concatenate(bones), np.concatenate(lengths)
     )
+    prob.member = ids[t, g, v]
     return prob, X[has], index
 
 
@@ -527,17 +578,18 @@ def calibrate_from_people(
         R, t, groups, obs, a, b = _start(tracks, rig0, source)
     else:
         R, t = start.R.copy(), start.t.copy()
-        groups = _group(tracks, _people_matches(tracks, focal))  # not through start: it moved
+        groups = _group(tracks, *_people_matches(tracks, focal))  # not through start: it moved
         obs = _observations(tracks, groups, V)
         a, b = 0, int(np.argmax(np.linalg.norm(start.centers - start.centers[0], axis=-1)))
+    obs, ids = obs
     frames = _frames(obs, max_frames)
     if not len(frames) or not groups:
         raise InputError(source, "keypoints", "frames where two cameras see one person")
-    obs = obs[frames]
+    obs, ids = obs[frames], ids[frames]
     X = triangulate_normalised(np.moveaxis(obs, 2, 3), R, t, np.ones(V, bool))
     s0 = _prescale(X) if start is None else 1.0
     t, X = t * s0, X * s0
-    prob, X0, index = _problem(obs, X, focal)
+    prob, X0, index = _problem(obs, X, focal, ids)
     L0 = _start_lengths(X)
     res = adjust(prob, R, t, X0, L0, fixed=a, gauge_cam=b)
     Xb = np.full(X.shape, np.nan)

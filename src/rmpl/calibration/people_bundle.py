@@ -62,6 +62,7 @@ class BundleProblem:
     focal: np.ndarray
     bones: np.ndarray
     bone_length: np.ndarray  # (B,) index into the lengths
+    member: np.ndarray | None = None  # (M,) the 2D track of each observation
 
 
 @dataclass
@@ -184,6 +185,7 @@ def adjust(
         if threshold is None:
             break
         keep = errors <= max(threshold, 3.0 * float(np.median(errors[mask])))
+        keep &= ~_bad_members(prob, errors, max(threshold / 2, 2.0 * float(np.median(errors))))
         if (keep == mask).all():
             continue
         mask = keep
@@ -191,6 +193,16 @@ def adjust(
     r = res.fun[: 2 * int(mask.sum())]
     sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
     return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+
+
+def _bad_members(prob: BundleProblem, errors: np.ndarray, limit: float) -> np.ndarray:
+    """Observations of the 2D tracks whose median error exceeds ``limit`` pixels: a track
+    given to the wrong person goes whole, not only its worst joints."""
+    if prob.member is None:
+        return np.zeros(len(errors), bool)
+    ids, inv = np.unique(prob.member, return_inverse=True)
+    med = np.array([np.median(errors[inv == k]) for k in range(len(ids))])
+    return med[inv] > limit
 
 
 def _errors(x, prob, V, free, fixed_pose, L) -> np.ndarray:
