@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Install Pose2Sim, OpenSim and trc-data-reader (all from PyPI) in a virtual environment of their own, for
-# scripts/opensim_ik.py (OpenSim scaling + inverse kinematics on rmpl's per-person TRC).
+# `rmpl benchmark opensim_ik` (OpenSim scaling + inverse kinematics on rmpl's per-person TRC).
 #
 #   bash scripts/setup_opensim.sh [VENV]      # default VENV: <repo>/.venv-opensim
 #

@@ -57,7 +57,9 @@ __all__ = [
     "HEIGHT_FRACTIONS",
     "CHAIN_FRACTION",
     "EXTRA_FRACTIONS",
+    "BODY_SEGMENTS",
     "bone_lengths",
+    "body_segments",
     "estimate_height",
 ]
 
@@ -217,3 +219,51 @@ def estimate_height(points: np.ndarray, skeleton: str = "coco17", min_frames: in
             total += float(np.mean(seen))
             fraction += EXTRA_FRACTIONS[part]
     return total / fraction
+
+
+#: The segments of :func:`body_segments`, as pairs of COCO-17 joints per side (both sides'
+#: lengths are averaged) or across the body (shoulder and hip width, trunk).
+BODY_SEGMENTS: dict[str, tuple[tuple[tuple[str, ...], tuple[str, ...]], ...]] = {
+    "upper_arm": ((("left_shoulder",), ("left_elbow",)), (("right_shoulder",), ("right_elbow",))),
+    "forearm": ((("left_elbow",), ("left_wrist",)), (("right_elbow",), ("right_wrist",))),
+    "thigh": ((("left_hip",), ("left_knee",)), (("right_hip",), ("right_knee",))),
+    "shank": ((("left_knee",), ("left_ankle",)), (("right_knee",), ("right_ankle",))),
+    "shoulder_width": ((("left_shoulder",), ("right_shoulder",)),),
+    "hip_width": ((("left_hip",), ("right_hip",)),),
+    "trunk": ((("left_hip", "right_hip"), ("left_shoulder", "right_shoulder")),),
+}
+
+
+def body_segments(
+    points: np.ndarray, skeleton: str = "coco17", min_frames: int = 3
+) -> dict[str, float]:
+    """A person's build from one track: the median length of each of
+    :data:`BODY_SEGMENTS` over the frames where both its ends are present (left and right
+    averaged), for telling two people apart by their bodies (a bone's length does not
+    change with pose).
+
+    Args:
+        points: one person's joints, shape (T, J, 3), metres; NaN = missing.
+        skeleton: the joint set (its names must include COCO-17's).
+        min_frames: a segment (side) counts only when seen in at least this many frames.
+
+    Returns:
+        ``{segment: metres}`` for the segments seen often enough (others left out).
+
+    >>> pts = np.full((3, 17, 3), np.nan)
+    >>> pts[:, 11], pts[:, 12] = [0.1, 0, 1.0], [-0.1, 0, 1.0]  # left and right hip
+    >>> body_segments(pts)
+    {'hip_width': 0.2}
+    """
+    x = _checked(points, skeleton)
+    out = {}
+    for name, sides in BODY_SEGMENTS.items():
+        found = []
+        for a, b in sides:
+            d = np.linalg.norm(_end(x, a, skeleton) - _end(x, b, skeleton), axis=-1)
+            d = d[np.isfinite(d)]
+            if len(d) >= min_frames:
+                found.append(float(np.median(d)))
+        if found:
+            out[name] = round(float(np.mean(found)), 6)
+    return out

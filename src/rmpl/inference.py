@@ -25,6 +25,7 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.model.lifter import RMPL
+from rmpl.models import PRETRAINED, checkpoint_reads_floor
 from rmpl.skeleton import Skeleton, skeleton_for, to_model_joints
 
 __all__ = [
@@ -37,23 +38,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-_WEIGHTS = Path(__file__).parent / "weights"
-#: Models shipped inside the package, by name. ``default``: COCO-17, the best on the joints
-#: the detector sees; ``occlusion``: the same recipe with more keypoint removal in training
-#: (p=0.4), better when many keypoints are missing; ``halpe26``: HALPE-26 (COCO-17 + head
-#: top, neck, mid-hip and feet), ``default`` fine-tuned on anny bodies; ``floor26``:
-#: ``halpe26`` fine-tuned with the floor plane as an input (``Lifter.lift(floor=)``) and many
-#: one-view batches, what ``rmpl run`` and ``rmpl lift`` use per frame unless told otherwise;
-#: ``scenes26``: ``halpe26`` fine-tuned with multi-person scenes as well (opt-in)
-#: (docs/results.md says how each was chosen).
-PRETRAINED: dict[str, Path] = {
-    "default": _WEIGHTS / "default",
-    "occlusion": _WEIGHTS / "occlusion",
-    "halpe26": _WEIGHTS / "halpe26",
-    "floor26": _WEIGHTS / "floor26",
-    "scenes26": _WEIGHTS / "scenes26",
-}
 
 
 @dataclass
@@ -125,24 +109,6 @@ def checked_floor(floor, rig: Rig):
 def floor_row(floor, Rc: np.ndarray) -> np.ndarray:
     """The floor plane in the z-up frame ``X' = Rc X`` as a network's row ``[n, h]`` (4,)."""
     return np.r_[Rc @ np.asarray(floor.normal, float), float(floor.height)].astype(np.float32)
-
-
-def checkpoint_reads_floor(name_or_path: str | Path) -> bool:
-    """Whether a ``--model`` value (shipped name or checkpoint directory) names a model whose
-    per-frame model takes the floor as an input (``RMPLConfig.floor``; a temporal model's
-    too); False when unreadable."""
-    import json
-
-    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
-
-    name = str(name_or_path)
-    path = Path(PRETRAINED.get(name) or PRETRAINED_TEMPORAL.get(name) or name_or_path)
-    try:
-        meta = json.loads((path / "config.json").read_text())
-    except (OSError, ValueError):
-        return False
-    model = meta.get("model") if isinstance(meta, dict) else None
-    return isinstance(model, dict) and bool(model.get("floor", False))
 
 
 def model_inputs(keypoints, scores, skeleton: Skeleton, joints: str | None):

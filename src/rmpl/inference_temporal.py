@@ -33,7 +33,6 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.rays import rays_from_keypoints
 from rmpl.inference import (
-    PRETRAINED,
     checked_floor,
     estimate_up,
     floor_row,
@@ -41,6 +40,7 @@ from rmpl.inference import (
     rotation_to_z,
 )
 from rmpl.model.temporal import RADIUS_50, RADIUS_90, TemporalRMPL
+from rmpl.models import PRETRAINED_TEMPORAL, is_temporal_checkpoint
 from rmpl.skeleton import Skeleton, skeleton_for
 
 __all__ = [
@@ -56,25 +56,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: Shipped temporal models: ``temporal`` (COCO-17, on the per-frame ``default``) and
-#: ``temporal26`` (HALPE-26, on ``halpe26``; ``rmpl run``'s default, docs/results.md).
-PRETRAINED_TEMPORAL: dict[str, Path] = {
-    "temporal": PRETRAINED["default"].parent / "temporal",
-    "temporal26": PRETRAINED["default"].parent / "temporal26",
-}
-
-
-def is_temporal_checkpoint(name_or_path: str | Path) -> bool:
-    """Whether a ``--model`` value names a temporal model (shipped name or checkpoint)."""
-    import json
-
-    path = Path(PRETRAINED_TEMPORAL.get(str(name_or_path), name_or_path))
-    try:
-        meta = json.loads((path / "config.json").read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and meta.get("format") == "rmpl-temporal-checkpoint-1"
-
 
 @dataclass(frozen=True)
 class RadiusCalibration:
@@ -87,7 +68,7 @@ class RadiusCalibration:
     views seeing the joint in that frame, the last entry serving every larger ``k``. The
     factors are quantiles of error / sigma on held-out windows
     (:func:`rmpl.training.temporal.fit_radius_calibration`; the shipped model's: MHP
-    sequences seen by the real detector, ``scripts/temporal_calibrate.py --mhp``), stored in
+    sequences seen by the real detector, ``rmpl.benchmarks.temporal_calibrate --mhp``), stored in
     the checkpoint's ``config.json`` under ``"calibration"``.
     """
 

@@ -341,7 +341,7 @@ def test_run_one_camera_end_to_end_with_the_floor(tmp_path, caplog):
     assert "--floor z=0" in text and "depth uncertainty" in text
     poses = load_poses(tmp_path / "f" / "poses.npz")
     from rmpl import Lifter
-    from rmpl.cli.run import ONE_CAMERA
+    from rmpl.models import ONE_CAMERA
 
     J = Lifter.from_pretrained(ONE_CAMERA).num_joints  # rmpl run's one-camera model's joints
     assert poses.points.shape == (60, 1, J, 3) and np.isfinite(poses.points).all()

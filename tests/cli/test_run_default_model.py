@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from rmpl.cli import main
-from rmpl.cli.run import ONE_CAMERA, PER_FRAME, TEMPORAL, default_model
 from rmpl.io.poses import load_poses
+from rmpl.models import ONE_CAMERA, PER_FRAME, TEMPORAL, choose_model
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "src/rmpl/examples/walk"
 
@@ -21,11 +21,11 @@ def test_default_model_rule(caplog):
 
     assert PER_FRAME in PRETRAINED and ONE_CAMERA in PRETRAINED
     assert TEMPORAL in PRETRAINED_TEMPORAL
-    assert default_model(4, 30.0, "rmpl") == TEMPORAL
-    assert default_model(1, 30.0, "rmpl") == ONE_CAMERA  # one camera: the floor path
-    assert default_model(4, 30.0, "triangulate") == PER_FRAME
+    assert choose_model(4, 30.0, "rmpl") == TEMPORAL
+    assert choose_model(1, 30.0, "rmpl") == ONE_CAMERA  # one camera: the floor path
+    assert choose_model(4, 30.0, "triangulate") == PER_FRAME
     with caplog.at_level(logging.WARNING):
-        assert default_model(4, None, "rmpl") == PER_FRAME
+        assert choose_model(4, None, "rmpl") == PER_FRAME
     assert any("no frame rate" in r.getMessage() for r in caplog.records)
 
 

@@ -474,7 +474,7 @@ def test_failed_save_leaves_no_file(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(kp_module.json, "dump", boom)
+    monkeypatch.setattr(kp_module.json, "dumps", boom)
     monkeypatch.setattr(kp_module.np, "savez_compressed", boom)
     for name in ("kp.json", "kp.npz"):
         with pytest.raises(OSError, match="disk full"):

@@ -311,7 +311,7 @@ def test_failed_write_leaves_no_file(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(poses_module.json, "dump", boom)
+    monkeypatch.setattr(poses_module.json, "dumps", boom)
     monkeypatch.setattr(poses_module.np, "savez_compressed", boom)
     monkeypatch.setattr(poses_module, "_trc_text", boom)
     for name in ("p.json", "p.npz", "p.trc"):

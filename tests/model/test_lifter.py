@@ -250,8 +250,9 @@ def test_shipped_models_load_and_lift(name):
 
 
 def test_model_help_names_every_shipped_model():
-    """The --model help (kept in the CLI without importing torch) lists every shipped model."""
-    from rmpl.cli._common import MODEL_HELP
+    """The --model help (built without importing torch) lists every shipped model."""
     from rmpl.inference import PRETRAINED
+    from rmpl.inference_temporal import PRETRAINED_TEMPORAL
+    from rmpl.models import MODEL_HELP
 
-    assert all(name in MODEL_HELP for name in PRETRAINED)
+    assert all(name in MODEL_HELP for name in [*PRETRAINED, *PRETRAINED_TEMPORAL])

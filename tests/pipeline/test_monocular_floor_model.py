@@ -97,7 +97,7 @@ def test_one_camera_without_a_floor_and_without_model_lifts_with_the_no_floor_mo
 ):
     """The floor model was chosen with the floor given: with none known, rmpl lift's own
     choice is the previous one-camera path (and says so); --model keeps the user's."""
-    from rmpl.cli.run import ONE_CAMERA, ONE_CAMERA_NO_FLOOR
+    from rmpl.models import ONE_CAMERA, ONE_CAMERA_NO_FLOOR
 
     assert ONE_CAMERA != ONE_CAMERA_NO_FLOOR
     io = _io(tmp_path)

@@ -23,6 +23,8 @@ COMMANDS = {
     "example": "rmpl.cli.example",
     "run": "rmpl.cli.run",
     "generate": "rmpl.cli.generate",
+    "batch": "rmpl.cli.batch",
+    "benchmark": "rmpl.cli.benchmark",
     "sync": "rmpl.cli.sync",
 }
 

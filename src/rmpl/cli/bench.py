@@ -1,6 +1,12 @@
 """Measure frames/s of the lifter presets and of triangulation, and peak memory.
 
 A frame is one person seen by V views. Example: rmpl bench --views 1,2,4,8 --out bench.md
+
+With --run: frames/s of rmpl run's whole chain on a trial, stage by stage (read, 3D,
+report, view check, files), each case in a fresh process; --baseline SRC runs another
+source tree beside it and --compare checks that both give the same outputs (1e-6 m):
+  rmpl bench --run --calib shelf_dev/calibration.json --keypoints shelf_dev \
+      --baseline /tmp/base/src --compare --out speed.md
 """
 
 from __future__ import annotations
@@ -31,6 +37,15 @@ def register(parser: argparse.ArgumentParser) -> None:
         help="frames of the track lifted by the temporal model, 4 views (0 = skip)",
     )
     parser.add_argument("--out", default=None, help="write the Markdown tables here")
+    from rmpl.benchmarks.speed import add_arguments
+
+    parser.add_argument(
+        "--run",
+        action="store_true",
+        dest="chain",
+        help="time rmpl run's chain on --calib / --keypoints",
+    )
+    add_arguments(parser.add_argument_group("--run"), required=False, out=False)
     parser.set_defaults(run=run)
 
 
@@ -43,6 +58,11 @@ def _ints(text: str) -> list[int]:
 
 def run(args: argparse.Namespace) -> int:
     import os
+
+    if args.chain:
+        from rmpl.benchmarks.speed import run as run_chain
+
+        return run_chain(args)
 
     from rmpl.bench import (
         long_sequence_memory,

@@ -3,7 +3,7 @@
 Writes poses.{npz,json,trc,c3d,bvh}, report.md/report.json, pose-3d/ (the Pose2Sim files),
 viewer.html (open it in a browser), skeleton.png and reprojection.png into --out, and
 prints the error of RMPL and of robust triangulation against the example's ground truth.
-The example was made by rmpl itself (scripts/make_example.py): a held-out motion-capture
+The example was made by rmpl itself (rmpl.benchmarks.make_example): a held-out motion-capture
 walk retargeted onto an anny body, rendered from 4 synthetic cameras, with MediaPipe
 BlazePose's 2D detections of the renders.
 """
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rmpl.cli._common import MODEL_HELP
+from rmpl.models import MODEL_HELP
 
 log = logging.getLogger(__name__)
 

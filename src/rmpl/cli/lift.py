@@ -14,9 +14,8 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
-from rmpl.cli._common import FLOOR_HELP, MODEL_HELP, add_io_arguments, run_single_method
+from rmpl.cli._common import FLOOR_HELP, add_io_arguments, axis_vector, run_single_method
+from rmpl.models import MODEL_HELP, ONE_CAMERA_NO_FLOOR, PER_FRAME
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -24,7 +23,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--model",
         default=None,
-        help=MODEL_HELP + ". Default: floor26 (one camera without a floor: default)",
+        help=MODEL_HELP
+        + f". Default: {PER_FRAME} (one camera without a floor: {ONE_CAMERA_NO_FLOOR})",
     )
     parser.add_argument(
         "--up",
@@ -34,15 +34,6 @@ def register(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--floor", default=None, metavar="FLOOR", help=FLOOR_HELP)
     parser.set_defaults(run=run)
-
-
-def axis_vector(name: str | None) -> np.ndarray | None:
-    """``"-y"`` -> (0, -1, 0); None stays None."""
-    if name is None:
-        return None
-    v = np.zeros(3)
-    v["xyz".index(name[-1])] = -1.0 if name.startswith("-") else 1.0
-    return v
 
 
 def run(args: argparse.Namespace) -> int:

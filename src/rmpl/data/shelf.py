@@ -130,18 +130,30 @@ def _load_detections(path: Path, size: tuple[int, int]) -> list[Candidates]:
     tok = _Tokens(path)
     T = _header(tok, _BODY25_CODE, "skeleton code, 4 = BODY_25")
     scale = np.array([size[0] - 1, size[1] - 1, 1.0])
+    values, counts = tok.values, tok.values.tolist()
+    end = len(counts)
     out = []
     for t in range(T):
         points = []
         for j in range(_BODY25_JOINTS):
-            n = tok.count(f"frame {t}, joint {j}: candidate count")
-            xys = tok.take(3 * n, f"frame {t}, joint {j}: 3 x {n} candidates")
-            points.append(xys.reshape(3, n).T * scale)
+            pos = tok.pos
+            n = counts[pos] if pos < end else -1.0
+            if not (n >= 0 and n == int(n)):  # the checked read names the problem
+                tok.count(f"frame {t}, joint {j}: candidate count")
+            n = int(n)
+            if pos + 1 + 3 * n > end:
+                tok.pos = pos + 1
+                tok.take(3 * n, f"frame {t}, joint {j}: 3 x {n} candidates")
+            points.append(values[pos + 1 : pos + 1 + 3 * n].reshape(3, n).T * scale)
+            tok.pos = pos + 1 + 3 * n
         affinities = []
         for a, b in BODY25_LIMBS:
             na, nb = len(points[a]), len(points[b])
-            aff = tok.take(na * nb, f"frame {t}, limb ({a}, {b}): {na} x {nb} affinities")
-            affinities.append(aff.reshape(na, nb))
+            pos = tok.pos
+            if pos + na * nb > end:
+                tok.take(na * nb, f"frame {t}, limb ({a}, {b}): {na} x {nb} affinities")
+            affinities.append(values[pos : pos + na * nb].reshape(na, nb))
+            tok.pos = pos + na * nb
         out.append(Candidates(tuple(points), tuple(affinities), BODY25_LIMBS, "body25"))
     tok.done()
     return out

@@ -17,6 +17,7 @@ from rmpl.geometry.rays import pixel_to_normalized
 __all__ = [
     "TriangulationResult",
     "triangulate",
+    "triangulate_points",
     "triangulate_robust",
     "reprojection_error",
     "recenter_point",
@@ -59,21 +60,29 @@ def _dlt(xy: np.ndarray, P: np.ndarray, w: np.ndarray) -> np.ndarray:
     Returns:
         Points, shape (*, J, 3); NaN where fewer than 2 views have weight.
     """
-    P = P[..., :, None, :, :]  # (*, V, 1, 3, 4)
-    r0 = xy[..., 0:1] * P[..., 2, :] - P[..., 0, :]  # (*, V, J, 4)
+    lead = np.broadcast_shapes(xy.shape[:-3], P.shape[:-3], w.shape[:-2])
+    V, J = xy.shape[-3], xy.shape[-2]
+    wj = np.moveaxis(np.broadcast_to(w, (*lead, V, J)), -2, -1)  # (*, J, V)
+    enough = (wj > 0).sum(axis=-1) >= 2  # (*, J): only these are solved
+    X = np.full((*lead, J, 3), np.nan)
+    if not enough.any():
+        return X
+    xy = np.moveaxis(np.broadcast_to(xy, (*lead, V, J, 2)), -3, -2)[enough]  # (n, V, 2)
+    P = np.broadcast_to(P[..., None, :, :, :], (*lead, J, V, 3, 4))[enough]  # (n, V, 3, 4)
+    w = wj[enough]  # (n, V)
+    r0 = xy[..., 0:1] * P[..., 2, :] - P[..., 0, :]  # (n, V, 4)
     r1 = xy[..., 1:2] * P[..., 2, :] - P[..., 1, :]
     # Rows scaled to unit length so the weight alone sets each view's influence.
     r0 = r0 / np.linalg.norm(r0, axis=-1, keepdims=True)
     r1 = r1 / np.linalg.norm(r1, axis=-1, keepdims=True)
     w2 = (w * w)[..., None, None]
     M = (w2 * (r0[..., :, None] * r0[..., None, :] + r1[..., :, None] * r1[..., None, :])).sum(
-        axis=-4
-    )  # (*, J, 4, 4)
+        axis=-3
+    )  # (n, 4, 4)
     _, vecs = np.linalg.eigh(M)
     h = vecs[..., :, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
-        X = h[..., :3] / h[..., 3:4]
-    X[(w > 0).sum(axis=-2) < 2] = np.nan
+        X[enough] = h[..., :3] / h[..., 3:4]
     return X
 
 
@@ -138,6 +147,14 @@ def triangulate(
     return TriangulationResult(X, np.where(ok, mean_err, np.nan), valid & ok[..., None, :])
 
 
+def triangulate_points(
+    keypoints: np.ndarray, scores: np.ndarray, rig: Rig, min_score: float = 0.0
+) -> np.ndarray:
+    """:func:`triangulate`'s points (*, J, 3) alone, without the reprojection errors."""
+    _, xy, w, _ = _prepare(keypoints, scores, rig, min_score)
+    return _dlt(xy, _normalized_P(rig), w)
+
+
 def _subset_masks(num_views: int) -> np.ndarray:
     """Every subset of at least 2 views, shape (S, V), bool."""
     masks = [
@@ -179,28 +196,56 @@ def _robust_block(kp, xy, w, valid, rig, masks, max_error, keep_failed):
     return pts, e, views
 
 
+def _pair_errors(kp, sc, rig, sel, min_score, npairs):
+    """Each left/right pair's summed mean reprojection error (*, pairs): the pairs' joints
+    ``sel`` (left joints first, then right) triangulated alone."""
+    e = triangulate(kp[..., sel, :], sc[..., sel], rig, min_score).error
+    return e[..., :npairs] + e[..., npairs:]
+
+
 def _swap_left_right(kp, sc, rig, flip_pairs, min_score):
     """Per view and left/right pair, swap the two keypoints when that at least halves the
     pair's error (only pairs whose two joints both triangulate as they are)."""
     kp, sc = kp.copy(), sc.copy()
     a_idx = [a for a, _ in flip_pairs]
     b_idx = [b for _, b in flip_pairs]
+    sel, k = a_idx + b_idx, len(flip_pairs)
+    # A joint's triangulation depends on its own keypoints only: the pairs' joints are
+    # triangulated alone, and after a swap the swapped pair's error is the one just tried.
+    base_err = _pair_errors(kp, sc, rig, sel, min_score, k)
     for v in range(kp.shape[-3]):
-        base = triangulate(kp, sc, rig, min_score)
-        base_err = base.error[..., a_idx] + base.error[..., b_idx]
         kp2, sc2 = kp.copy(), sc.copy()
         kp2[..., v, a_idx, :], kp2[..., v, b_idx, :] = kp[..., v, b_idx, :], kp[..., v, a_idx, :]
         sc2[..., v, a_idx], sc2[..., v, b_idx] = sc[..., v, b_idx], sc[..., v, a_idx]
-        alt = triangulate(kp2, sc2, rig, min_score)
-        alt_err = alt.error[..., a_idx] + alt.error[..., b_idx]
+        alt_err = _pair_errors(kp2, sc2, rig, sel, min_score, k)
         # Only where both joints of the pair triangulate as they are: a pair with a joint
         # seen once would otherwise "improve" by borrowing the other side's observation.
         better = np.isfinite(base_err) & (np.nan_to_num(alt_err, nan=np.inf) < 0.5 * base_err)
-        for k, (a, b) in enumerate(flip_pairs):
-            m = better[..., k]
+        for i, (a, b) in enumerate(flip_pairs):
+            m = better[..., i]
             kp[m, v, a], kp[m, v, b] = kp2[m, v, a], kp2[m, v, b]
             sc[m, v, a], sc[m, v, b] = sc2[m, v, a], sc2[m, v, b]
+        base_err = np.where(better, alt_err, base_err)
     return kp, sc
+
+
+def _per_joint(a: np.ndarray, lead: tuple, V: int, J: int) -> np.ndarray:
+    """(*, V, J, ...) -> (n * J, V, 1, ...): one item per point and joint."""
+    rest = a.shape[len(lead) + 2 :]
+    a = np.moveaxis(a.reshape(-1, V, J, *rest), 2, 1)
+    return a.reshape(-1, V, 1, *rest)
+
+
+def _all_views(kp, xy, w, valid, rig, max_error):
+    """The search's first candidate, every view that sees the joint, of items (n, V, 1, ·):
+    points (n, 1, 3), mean error (n, 1), and whether it is the answer (n, 1): triangulated
+    from two or more views within ``max_error`` (no other subset then excludes as few)."""
+    X = _dlt(xy, _normalized_P(rig), w)
+    err = reprojection_error(X, kp, rig)
+    n_used = valid.sum(-2)
+    mean_err = np.where(valid, err, 0).sum(-2) / np.maximum(n_used, 1)
+    done = (n_used >= 2) & np.isfinite(X).all(-1) & np.isfinite(mean_err)
+    return X, mean_err, done & (mean_err <= max_error)
 
 
 def triangulate_robust(
@@ -243,18 +288,26 @@ def triangulate_robust(
     kp, xy, w, valid = _prepare(kp0, sc0, rig, min_score)
     lead = kp.shape[:-3]
     V, J = kp.shape[-3], kp.shape[-2]
-    flat = [a.reshape(-1, *a.shape[len(lead) :]) for a in (kp, xy, w, valid)]
+    items = [_per_joint(a, lead, V, J) for a in (kp, xy, w, valid)]
+    # Fewest exclusions first: most joints are answered by all their views; the subsets
+    # are searched only for the others (those two or more views see).
+    X, mean_err, done = _all_views(*items, rig, max_error)
+    pts = np.where(done[..., None], X, np.nan)
+    err = np.where(done, mean_err, np.nan)
+    views = items[3] & done[:, None]
+    search = np.flatnonzero(~done[:, 0] & (items[3].sum((-1, -2)) >= 2))
     masks = _subset_masks(V)
-    n = flat[0].shape[0]
-    pts, err, views = np.empty((n, J, 3)), np.empty((n, J)), np.empty((n, V, J), bool)
     step = max(1, block * 32 // max(len(masks), 1))
-    for s in range(0, n, step):
-        sl = slice(s, s + step)
-        pts[sl], err[sl], views[sl] = _robust_block(
-            *(a[sl] for a in flat), rig, masks, max_error, keep_failed
+    for s in range(0, len(search), step):
+        idx = search[s : s + step]
+        pts[idx], err[idx], views[idx] = _robust_block(
+            *(a[idx] for a in items), rig, masks, max_error, keep_failed
         )
+    n = int(np.prod(lead, dtype=int))
     return TriangulationResult(
-        pts.reshape(*lead, J, 3), err.reshape(*lead, J), views.reshape(*lead, V, J)
+        pts.reshape(*lead, J, 3),
+        err.reshape(*lead, J),
+        np.moveaxis(views.reshape(n, J, V), 1, 2).reshape(*lead, V, J),
     )
 
 

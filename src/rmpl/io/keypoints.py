@@ -553,8 +553,8 @@ def save_keypoints(kp: Keypoints2D, path: str | Path) -> Path:
                 "keypoints": _json_floats(kp.keypoints),
                 "scores": kp.scores.tolist(),
             }
-            with open(tmp, "w", encoding="utf-8") as f:
-                json.dump(doc, f, allow_nan=False)
+            # dumps, not dump: the same text from json's C encoder, many times faster
+            tmp.write_text(json.dumps(doc, allow_nan=False), encoding="utf-8")
     return path
 
 

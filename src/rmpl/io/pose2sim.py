@@ -362,6 +362,7 @@ def write_pose2sim(
     units: str = "m",
     missing: str = "gaps",
     formats: tuple[str, ...] = ("trc", "c3d"),
+    min_frames: int = 1,
 ) -> list[Path]:
     """Write one TRC and one C3D per person, as Pose2Sim's kinematics step reads them.
 
@@ -374,6 +375,8 @@ def write_pose2sim(
         units: ``"m"`` or ``"mm"`` (Pose2Sim's kinematics needs ``"m"``).
         missing: ``"gaps"``, ``"interpolate"`` or ``"complete"`` (see the module docstring).
         formats: any of ``"trc"``, ``"c3d"``.
+        min_frames: a person present (any joint) in fewer frames gets no file (logged):
+            a fragment too short for OpenSim's scaling and IK to say anything.
 
     Returns:
         The paths written, person by person (TRC before C3D). Each file is written
@@ -402,7 +405,12 @@ def write_pose2sim(
     names = tuple(model.markers)
     ik = ", ".join(model.ik_markers)
     files: list[tuple[Path, str, object]] = []
+    present = ~np.isnan(poses.points).all((-1, -2))  # (T, P)
     for p, pid in enumerate(poses.person_ids.tolist()):
+        if present[:, p].sum() < min_frames:
+            log.info("person %d: %d frames (< %d); no Pose2Sim file", pid,
+                     int(present[:, p].sum()), min_frames)  # fmt: skip
+            continue
         rows, pts = select_frames(markers[:, p], missing, model)
         if len(rows) == 0:
             log.warning("person %d: no frame with all of %s; no Pose2Sim file", pid, ik)
@@ -418,7 +426,8 @@ def write_pose2sim(
                 writer = _c3d_writer(pts, frames, poses.fps, units, orientation, names)
                 files.append((path, fmt, writer))
     if not files:
-        raise InputError(folder, "points", f"a person with all of {ik} in some frame", "none")
+        raise InputError(folder, "points", f"a person in {min_frames}+ frames with all of {ik} "
+                         "in some frame", "none")  # fmt: skip
     for path, fmt, content in files:
         with atomic_path(path) as tmp:
             if fmt == "trc":

@@ -155,6 +155,8 @@ class Poses3D:
         camera_names: the V views' names, in the order of the per-view fields; or None.
         heights: each person's estimated standing height, metres, shape (P,); NaN where
             unknown (:func:`rmpl.anthropometry.estimate_height`); or None.
+        identity: how the tracks were formed (:meth:`rmpl.pipeline.identity.Identities.to_json`:
+            fragments, merges, drops), for the run report; or None. Not saved in the files.
     """
 
     points: np.ndarray
@@ -171,6 +173,7 @@ class Poses3D:
     view_status: np.ndarray | None = None
     camera_names: tuple[str, ...] | None = None
     heights: np.ndarray | None = None
+    identity: dict | None = None
 
     def __post_init__(self) -> None:
         pts = _floats(self.points, "points")
@@ -376,8 +379,8 @@ def save_poses(
         if fmt == "npz":
             _write_npz(poses, tmp)
         elif fmt == "json":
-            with open(tmp, "w", encoding="utf-8") as f:
-                json.dump(_json_doc(poses), f, allow_nan=False)
+            # dumps, not dump: the same text from json's C encoder, many times faster
+            tmp.write_text(json.dumps(_json_doc(poses), allow_nan=False), encoding="utf-8")
         elif fmt == "trc":
             tmp.write_text(_trc_text(poses, path.name, units, up_axis), encoding="utf-8")
         elif fmt == "bvh":

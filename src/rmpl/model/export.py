@@ -11,7 +11,7 @@ import torch
 
 from rmpl.model.lifter import RMPL
 
-__all__ = ["export_onnx", "OnnxLifter"]
+__all__ = ["CACHE_ENV", "OnnxLifter", "export_key", "export_onnx"]
 
 
 def export_onnx(
@@ -64,15 +64,84 @@ class _WithFloor(torch.nn.Module):
         return self.model(rays, scores, floor=floor)
 
 
+#: Where exported networks are kept (``$RMPL_ONNX_CACHE``, else ``~/.cache/rmpl/onnx``;
+#: ``RMPL_ONNX_CACHE=off`` exports every time). A file's name is a hash of everything the
+#: export depends on, so a changed model or rmpl version never reads a stale one.
+CACHE_ENV = "RMPL_ONNX_CACHE"
+
+
+def _cache_dir() -> Path | None:
+    import os
+
+    where = os.environ.get(CACHE_ENV)
+    if where == "off":
+        return None
+    return Path(where) if where else Path.home() / ".cache" / "rmpl" / "onnx"
+
+
+def export_key(model: torch.nn.Module, **export) -> str:
+    """A hash of what :func:`export_onnx` of ``model`` depends on: the weights and buffers,
+    the config, the module's class, the export options, torch's version and the source of
+    ``rmpl.model`` and ``rmpl.skeleton``."""
+    import dataclasses
+    import hashlib
+
+    import rmpl.model
+    import rmpl.skeleton
+
+    h = hashlib.sha256()
+    h.update(f"{torch.__version__}|{type(model).__module__}.{type(model).__qualname__}".encode())
+    h.update(repr(sorted(export.items())).encode())
+    config = getattr(model, "config", None)
+    if dataclasses.is_dataclass(config):
+        h.update(repr(dataclasses.asdict(config)).encode())
+    sources = sorted(Path(rmpl.model.__file__).parent.glob("*.py"))
+    for src in [*sources, Path(rmpl.skeleton.__file__)]:
+        h.update(src.read_bytes())
+    for name, tensor in model.state_dict().items():
+        h.update(f"{name}|{tuple(tensor.shape)}|{tensor.dtype}".encode())
+        h.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return h.hexdigest()[:32]
+
+
+def _exported(model: torch.nn.Module, folder: str, **export) -> Path:
+    """The ONNX file of ``model``: from the cache when it holds this export, else exported
+    (into the cache when it is writable, else into ``folder``)."""
+    import logging
+
+    from rmpl.io.atomic import atomic_path
+
+    cache = _cache_dir()
+    if cache is not None:
+        path = cache / f"{export_key(model, **export)}.onnx"
+        if path.is_file():
+            return path
+        try:
+            with atomic_path(path) as tmp:
+                export_onnx(model, tmp, **export)
+            return path
+        except OSError as e:  # a read-only home: export where the session can read it
+            logging.getLogger(__name__).debug("ONNX cache %s not writable: %s", cache, e)
+    return export_onnx(model, Path(folder) / "model.onnx", **export)
+
+
 def _session(model: torch.nn.Module, threads: int, **export):
-    """An onnxruntime session on ``model`` exported by :func:`export_onnx` to a temporary file."""
+    """An onnxruntime session on ``model`` exported by :func:`export_onnx` (kept in the
+    cache, :data:`CACHE_ENV`, for the next run)."""
     import onnxruntime as ort
 
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
     with tempfile.TemporaryDirectory() as d:
-        path = export_onnx(model, Path(d) / "model.onnx", **export)
-        opts = ort.SessionOptions()
-        opts.intra_op_num_threads = threads
-        return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        path = _exported(model, d, **export)
+        try:
+            return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+        except Exception:  # a damaged cache file: export again, beside the session
+            if Path(d) in path.parents:
+                raise
+            path.unlink(missing_ok=True)
+            path = export_onnx(model, Path(d) / "model.onnx", **export)
+            return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
 
 
 class OnnxLifter:

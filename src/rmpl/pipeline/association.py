@@ -18,6 +18,7 @@ Pixels from the top-left; metres.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -148,27 +149,35 @@ class GroupingConfig:
 
 
 def _limb_connections(candidates: Candidates, cfg: GroupingConfig) -> list[tuple]:
-    """Per limb, greedy one-to-one connections by descending affinity.
+    """Per limb, greedy one-to-one connections by descending affinity (ties: the first
+    candidate pair in row-major order).
 
     Returns:
         (affinity, joint a, candidate i, joint b, candidate j) tuples.
     """
     edges = []
+    score = [(p[:, 2] >= cfg.min_part_score).tolist() for p in candidates.points]
     for (a, b), A in zip(candidates.limbs, candidates.affinities, strict=True):
         if A.size == 0:
             continue
-        ok_a = candidates.points[a][:, 2] >= cfg.min_part_score
-        ok_b = candidates.points[b][:, 2] >= cfg.min_part_score
-        S = np.where(ok_a[:, None] & ok_b[None, :] & (A >= cfg.min_affinity), A, -np.inf)
+        ok_a, ok_b = score[a], score[b]
+        # plain Python: the matrices are a few candidates square
+        pairs = [
+            (-s, i, j)
+            for i, row in enumerate(A.tolist())
+            if ok_a[i]
+            for j, s in enumerate(row)
+            if ok_b[j] and s >= cfg.min_affinity
+        ]
+        if any(s == -math.inf for s, _, _ in pairs):  # an infinite affinity stops the limb
+            continue
+        pairs.sort()
         used_a, used_b = set(), set()
-        for k in np.argsort(-S, axis=None, kind="stable"):
-            i, j = divmod(int(k), S.shape[1])
-            if not np.isfinite(S[i, j]):
-                break
+        for s, i, j in pairs:
             if i not in used_a and j not in used_b:
                 used_a.add(i)
                 used_b.add(j)
-                edges.append((float(S[i, j]), a, i, b, j))
+                edges.append((-s, a, i, b, j))
     return edges
 
 
@@ -208,13 +217,13 @@ def group_people(
     """
     cfg = config or GroupingConfig()
     J = candidates.num_joints
-    owner = [np.full(len(p), -1) for p in candidates.points]  # person of each candidate
-    people: list[np.ndarray | None] = []  # per person: candidate index per joint, -1 none
+    owner = [[-1] * len(p) for p in candidates.points]  # person of each candidate
+    people: list[list[int] | None] = []  # per person: candidate index per joint, -1 none
     edges = sorted(_limb_connections(candidates, cfg), key=lambda e: -e[0])
     for _, a, i, b, j in edges:
         pa, pb = owner[a][i], owner[b][j]
         if pa < 0 and pb < 0:
-            person = np.full(J, -1)
+            person = [-1] * J
             person[a], person[b] = i, j
             owner[a][i] = owner[b][j] = len(people)
             people.append(person)
@@ -224,19 +233,25 @@ def group_people(
         elif pb >= 0 and pa < 0:
             if people[pb][a] < 0:
                 people[pb][a], owner[a][i] = i, pb
-        elif pa != pb and not ((people[pa] >= 0) & (people[pb] >= 0)).any():
-            for k in np.flatnonzero(people[pb] >= 0):
-                people[pa][k] = people[pb][k]
-                owner[k][people[pb][k]] = pa
+        elif pa != pb and not any(
+            x >= 0 and y >= 0 for x, y in zip(people[pa], people[pb], strict=True)
+        ):
+            for k, c in enumerate(people[pb]):
+                if c >= 0:
+                    people[pa][k] = c
+                    owner[k][c] = pa
             people[pb] = None
     kps, scs = [], []
     for person in people:
-        if person is None or (person >= 0).sum() < cfg.min_parts:
+        if person is None:
+            continue
+        have = [k for k, c in enumerate(person) if c >= 0]
+        if len(have) < cfg.min_parts:
             continue
         kp, sc = np.full((J, 2), np.nan), np.zeros(J)
-        for k in np.flatnonzero(person >= 0):
+        for k in have:
             kp[k], sc[k] = candidates.points[k][person[k], :2], candidates.points[k][person[k], 2]
-        if sc[person >= 0].mean() >= cfg.min_mean_score:
+        if sc[have].mean() >= cfg.min_mean_score:
             kps.append(kp)
             scs.append(sc)
     kp, sc = np.array(kps).reshape(-1, J, 2), np.array(scs).reshape(-1, J)

@@ -87,7 +87,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rmpl.geometry.camera import Rig
-from rmpl.geometry.triangulate import triangulate
+from rmpl.geometry.triangulate import triangulate_points
 from rmpl.io.poses import ViewStatus
 from rmpl.pipeline.association import coco17_joints
 
@@ -266,7 +266,7 @@ class _Errors:
     def triangulate(self, views: np.ndarray) -> np.ndarray:
         """3D (T, P, J, 3) from the views ``views`` (T, P, V) bool of each person."""
         w = np.where(views[..., None] & self.valid, self.sc, 0.0)
-        return triangulate(self.kp, w, self.rig).points
+        return triangulate_points(self.kp, w, self.rig)
 
     def __call__(self, reference: np.ndarray) -> np.ndarray:
         """(T, P, V): median joint distance / size; NaN with fewer than min_joints. A joint
@@ -344,16 +344,40 @@ def check_views(
         mirror = np.array([where[int(np.asarray(mirror)[j])] for j in use])
     keypoints, scores = keypoints[..., use, :], scores[..., use]
     points = points[..., coco17_joints(points.shape[-2], points_skeleton), :]
-    thr = cfg.threshold
     present = ~np.isnan(points).all((-1, -2))  # (T, P)
     size = _sizes(points, keypoints, rig, heights)
-    err = _Errors(keypoints, scores, rig, size, cfg.min_joints)
-    has2d = err.valid.any(-1) & present[..., None]  # (T, P, V)
+    T, P, V = size.shape
+    status = np.full((T, P, V), int(ViewStatus.ABSENT), np.uint8)
+    error = np.full((T, P, V), np.nan)
+    swapped = np.zeros((T, P, V), bool)
+    # Only the person-frames with 3D are checked; the others are absent in every view.
+    rows = np.nonzero(present)
+    sub = _check_rows(
+        points[rows][None], keypoints[rows][None], scores[rows][None], rig,
+        size[rows][None], cfg, mirror, progress=T * P >= PROGRESS_FROM,
+    )  # fmt: skip
+    status[rows], error[rows], swapped[rows] = (a[0] for a in sub)
+    agrees = (status == ViewStatus.AGREES).sum(-1)
+    disagrees = (status == ViewStatus.DISAGREES).sum(-1)
+    compared = agrees + disagrees >= 2
+    contested = compared & (disagrees >= 1)
+    n_compared = compared.sum(0)
+    failed = (n_compared > 0) & (contested.sum(0) > cfg.most_frames * n_compared)
+    return Consistency(status, error, size, compared, contested, failed, cfg, swapped)
+
+
+def _check_rows(points, keypoints, scores, rig, size, cfg, mirror, progress):
+    """:func:`check_views`'s statuses (T, P, V), errors (T, P, V) and left/right swaps
+    (T, P, V) of people with 3D in every frame (``points`` (T, P, J, 3) not all NaN),
+    their sizes ``size`` (T, P, V) given."""
     from tqdm import tqdm
 
-    T, P, V = has2d.shape
-    big = T * P >= PROGRESS_FROM  # long recordings: a few seconds per 10,000 person-frames
-    bar = tqdm(total=V * (V - 1) // 2 + V, desc="view check", unit="step", disable=not big)
+    thr = cfg.threshold
+    err = _Errors(keypoints, scores, rig, size, cfg.min_joints)
+    has2d = err.valid.any(-1)  # (T, P, V)
+    V = has2d.shape[-1]
+    # long recordings: a few seconds per 10,000 person-frames
+    bar = tqdm(total=V * (V - 1) // 2 + V, desc="view check", unit="step", disable=not progress)
     consensus, comparable = _consensus(err, has2d, thr, bar)
     found = consensus.any(-1)  # (T, P)
     error = np.full(has2d.shape, np.nan)
@@ -391,16 +415,8 @@ def check_views(
     inside = _in_image(points, rig)
     status[~has2d & inside] = ViewStatus.MISSED
     status[~has2d & ~inside] = ViewStatus.OUT_OF_VIEW
-    status[~present] = ViewStatus.ABSENT
-
-    agrees = (status == ViewStatus.AGREES).sum(-1)
-    disagrees = (status == ViewStatus.DISAGREES).sum(-1)
-    compared = agrees + disagrees >= 2
-    contested = compared & (disagrees >= 1)
-    n_compared = compared.sum(0)
-    failed = (n_compared > 0) & (contested.sum(0) > cfg.most_frames * n_compared)
     swapped = (status == ViewStatus.DISAGREES) & (flipped <= np.minimum(thr, 0.5 * error))
-    return Consistency(status, error, size, compared, contested, failed, cfg, swapped)
+    return status, error, swapped
 
 
 def frame_ranges(frames: np.ndarray, mask: np.ndarray) -> list[tuple[int, int]]:

@@ -5,16 +5,24 @@ generator also uses), so any detector that follows it plugs in: a single-person 
 (B, J, 2) output gets a people axis of 1, or a :class:`rmpl.synth.detect.MultiPersonDetector`
 with (B, N, J, 2). :data:`DETECTORS` names the ones ``rmpl run --detector`` offers:
 
-- ``blazepose-multi`` (the default, :data:`DEFAULT_DETECTOR`): BlazePose's own person
-  detector and landmark network (shipped in the ``mediapipe==0.10.14`` wheel) for up to 4
-  people per frame, each followed from frame to frame
-  (:class:`rmpl.synth.detect_multi.BlazePoseMulti`); frames of a view are fed in order.
+- ``movenet-blazepose`` (the default, :data:`DEFAULT_DETECTOR`): Google's MoveNet
+  MultiPose Lightning (shipped with rmpl, Apache-2.0, run on LiteRT) finds up to 6 people
+  per frame, and BlazePose's full landmark network draws each of them in a crop, feet
+  included, followed from frame to frame
+  (:class:`rmpl.synth.detect_movenet.MoveNetBlazePose`); frames of a view are fed in order.
+- ``movenet-blazepose-static``: the same, every frame detected afresh.
+- ``movenet``: MoveNet alone, COCO-17 (no feet), every frame afresh.
+- ``blazepose-multi``: BlazePose's own person detector and landmark network (shipped in
+  the ``mediapipe==0.10.14`` wheel) for up to 4 people per frame, each followed from frame
+  to frame (:class:`rmpl.synth.detect_multi.BlazePoseMulti`; the default before
+  ``movenet-blazepose``).
 - ``blazepose-multi-static``: the same, every frame detected afresh (slower).
 - ``mediapipe``: MediaPipe's legacy ``Pose`` solution, one person per frame and view,
   every frame afresh, as in the training data of the shipped lifter.
 
 Videos are read with OpenCV (``cv2``, which comes with mediapipe); nothing is downloaded.
-Install both with ``pip install 'rmpl[detect]'``.
+Install them (and LiteRT, ``ai-edge-litert``, for MoveNet) with ``pip install 'rmpl[detect]'``.
+With ``workers`` > 1 the cameras are detected in parallel on a local Ray instance.
 
 The result is a :class:`rmpl.io.keypoints.Keypoints2D` with ``P`` = the most people any
 view had in a frame (at least 1; a person's index in one view says nothing about the same
@@ -95,14 +103,29 @@ def _blazepose_multi(**kwargs):
     return BlazePoseMulti(**kwargs)
 
 
+def _movenet(**kwargs):
+    from rmpl.synth.detect_movenet import MoveNet
+
+    return MoveNet(**kwargs)
+
+
+def _movenet_blazepose(**kwargs):
+    from rmpl.synth.detect_movenet import MoveNetBlazePose
+
+    return MoveNetBlazePose(**kwargs)
+
+
 #: Detector factories by name, for ``rmpl run --detector`` (imported when called).
 DETECTORS: dict[str, Callable[[], object]] = {
     "blazepose-multi": _blazepose_multi,
     "blazepose-multi-static": functools.partial(_blazepose_multi, track=False),
     "mediapipe": _mediapipe,
+    "movenet": _movenet,
+    "movenet-blazepose": _movenet_blazepose,
+    "movenet-blazepose-static": functools.partial(_movenet_blazepose, track=False),
 }
 #: The detector of ``rmpl run --videos/--images``, chosen by measurement
-#: (``scripts/bench_detect.py``; docs/results.md).
+#: (``rmpl.benchmarks.bench_detect``; docs/results.md).
 DEFAULT_DETECTOR = "blazepose-multi"
 
 
@@ -424,37 +447,36 @@ def _detect_views(
     batch: int,
     cache_dir: str | Path | None,
     progress: bool,
+    workers: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Detect every view (or reuse its cache): (T, V, P, J, 2), (T, V, P, J), and the joint
-    set's name."""
-    det, owned = None, False
-    kps, scs = [], []
-    try:
-        for v, name in enumerate(names):
-            cache = None if cache_dir is None else Path(cache_dir) / f"{v:02d}_{name}.npz"
-            stamp = json.dumps({"input": fingerprint[v], **_detector_stamp(detector)})
-            hit = None if cache is None else _cached_view(cache, stamp)
-            if hit is not None and hit[0].shape[-2] == 17:  # made before detectors gave feet
-                log.warning(
-                    "view %s: reusing COCO-17 detections from %s (made before the detectors "
-                    "gave feet); delete it to detect the heels too", name, cache,
-                )  # fmt: skip
-            if hit is not None and hit[0].shape[0] == num_frames:
-                log.info("view %s: reusing detections from %s", name, cache)
-                kp, sc = hit
-            else:
-                if det is None:
-                    det, owned = _make_detector(detector)
-                kp, sc = _detect_stream(
-                    frames_of(v), num_frames, det, batch, f"detect {name}", progress
-                )
-                if cache is not None:
-                    _save_view(cache, stamp, kp, sc)
-            kps.append(kp)
-            scs.append(sc)
-    finally:
-        if owned:
-            det.close()
+    set's name. With ``workers`` > 1 the views to detect run in parallel on Ray."""
+    kps: list = [None] * len(names)
+    scs: list = [None] * len(names)
+    todo = []
+    for v, name in enumerate(names):
+        cache = None if cache_dir is None else Path(cache_dir) / f"{v:02d}_{name}.npz"
+        stamp = json.dumps({"input": fingerprint[v], **_detector_stamp(detector)})
+        hit = None if cache is None else _cached_view(cache, stamp)
+        if hit is not None and hit[0].shape[-2] == 17:  # made before detectors gave feet
+            log.warning(
+                "view %s: reusing COCO-17 detections from %s (made before the detectors "
+                "gave feet); delete it to detect the heels too", name, cache,
+            )  # fmt: skip
+        if hit is not None and hit[0].shape[0] == num_frames:
+            log.info("view %s: reusing detections from %s", name, cache)
+            kps[v], scs[v] = hit
+        else:
+            todo.append((v, cache, stamp))
+    run = _detect_on_ray if workers > 1 and len(todo) > 1 else _detect_here
+    for (v, cache, stamp), (kp, sc) in zip(
+        todo,
+        run(todo, names, num_frames, frames_of, detector, batch, progress, workers),
+        strict=True,
+    ):
+        if cache is not None:
+            _save_view(cache, stamp, kp, sc)
+        kps[v], scs[v] = kp, sc
     from rmpl.skeleton import embed, embed_scores
 
     skeleton = _joint_set(max(k.shape[-2] for k in kps))
@@ -462,6 +484,55 @@ def _detect_views(
         if _joint_set(k.shape[-2]) != skeleton:
             kps[v], scs[v] = embed(k, "coco17", skeleton), embed_scores(scs[v], "coco17", skeleton)
     return (*_stack_views(kps, scs, sources), skeleton)
+
+
+def _detect_here(todo, names, num_frames, frames_of, detector, batch, progress, workers):
+    """The views of ``todo`` one after the other, in this process: yields (kp, sc)."""
+    det, owned = None, False
+    try:
+        for v, _, _ in todo:
+            if det is None:
+                det, owned = _make_detector(detector)
+            yield _detect_stream(
+                frames_of(v), num_frames, det, batch, f"detect {names[v]}", progress
+            )
+    finally:
+        if owned:
+            det.close()
+
+
+def _detect_one_view(frames_of, v: int, num_frames: int, detector: str, batch: int):
+    """View ``v`` with a detector of its own (a Ray task's body)."""
+    det, _ = _make_detector(detector)
+    try:
+        return _detect_stream(frames_of(v), num_frames, det, batch, "", False)
+    finally:
+        det.close()
+
+
+def _detect_on_ray(todo, names, num_frames, frames_of, detector, batch, progress, workers):
+    """The views of ``todo`` as Ray tasks, ``workers`` at a time, each with its own detector
+    (so a name of :data:`DETECTORS`, not an instance): the same results as one after the
+    other. Ray is started here, a new instance on this machine, when this process has none
+    yet (``address="local"``: never another cluster)."""
+    if detector is not None and not isinstance(detector, str):
+        raise ValueError("detecting views in parallel needs a detector name, not an instance")
+    try:
+        import ray
+    except ImportError as e:
+        raise ImportError("detecting views in parallel needs Ray: pip install 'rmpl[ray]'") from e
+    from tqdm import tqdm
+
+    if not ray.is_initialized():
+        ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False)
+    task = ray.remote(num_cpus=1)(_detect_one_view)
+    name = detector or DEFAULT_DETECTOR
+    refs = [task.remote(frames_of, v, num_frames, name, batch) for v, _, _ in todo]
+    with tqdm(total=len(refs), desc="detect views", unit="view", disable=not progress) as bar:
+        for ref in refs:  # in order, each saved to the cache as soon as it is back
+            result = ray.get(ref)
+            bar.update(1)
+            yield result
 
 
 def _stack_views(
@@ -498,6 +569,7 @@ def detect_videos(
     batch: int = 8,
     cache_dir: str | Path | None = None,
     progress: bool = True,
+    workers: int = 1,
 ) -> Keypoints2D:
     """Detect people in every frame of each of several synchronised videos.
 
@@ -510,6 +582,10 @@ def detect_videos(
         batch: frames handed to the detector at a time.
         cache_dir: folder for per-view results, to resume an interrupted run (optional).
         progress: show a progress bar per view.
+        workers: views detected at once; above 1 they run as Ray tasks on this machine
+            (``rmpl[ray]``; ``ray.init`` is called only then, and only if Ray is not
+            running), each with its own detector, so ``detector`` must be a name; the
+            results are those of one view after the other.
 
     Returns:
         Keypoints (T, V, P, J, 2) in pixels, scores (T, V, P, J), COCO-17 or HALPE-26 (see
@@ -533,6 +609,7 @@ def detect_videos(
         batch,
         cache_dir,
         progress,
+        workers,
     )
     return Keypoints2D(kp, sc, skeleton, names, np.arange(T), infos[0].fps)
 
@@ -545,6 +622,7 @@ def detect_images(
     batch: int = 8,
     cache_dir: str | Path | None = None,
     progress: bool = True,
+    workers: int = 1,
 ) -> Keypoints2D:
     """Detect people in every image of each of several folders of synchronised frames.
 
@@ -552,7 +630,7 @@ def detect_images(
 
     Args:
         folders: one folder of images per camera, all of the same length.
-        detector, batch, cache_dir, progress: as in :func:`detect_videos`.
+        detector, batch, cache_dir, progress, workers: as in :func:`detect_videos`.
         fps: frame rate to record, if known.
 
     Returns:
@@ -577,5 +655,6 @@ def detect_images(
         batch,
         cache_dir,
         progress,
+        workers,
     )
     return Keypoints2D(kp, sc, skeleton, names, np.arange(T), fps)

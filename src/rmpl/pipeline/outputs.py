@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FORMATS", "write_all", "write_input_overlays"]
+__all__ = ["FORMATS", "pose2sim_min_frames_of", "write_all", "write_input_overlays"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +71,7 @@ def write_all(
     pose2sim: str | None = "pose2sim-y-up",
     up=None,
     floor="not recorded",
+    pose2sim_min_frames: int | None = None,
 ):
     """The run report, every requested export plus the viewer page, the pictures and
     ``overlays(folder)``, committed into ``out`` as one set
@@ -86,7 +87,9 @@ def write_all(
     A summary is logged after the commit; a person whose views disagree in most frames gets
     a WARNING banner. ``floor``: the floor the lifter was given (a
     :class:`rmpl.geometry.floor.Floor`, or None: none), written to the report; by default
-    not recorded (:data:`rmpl.pipeline.report.NOT_RECORDED`).
+    not recorded (:data:`rmpl.pipeline.report.NOT_RECORDED`). ``pose2sim_min_frames``: a
+    person present in fewer frames gets no Pose2Sim files of its own (it stays in the other
+    exports); None: one second of frames (:func:`pose2sim_min_frames_of`).
 
     Returns:
         The :class:`rmpl.pipeline.report.RunReport`; its ``exit_code`` (0 or 3) is what
@@ -100,7 +103,8 @@ def write_all(
     with staged_folder(out) as stage:
         _export(poses, stage, formats)
         if pose2sim is not None:
-            _export_pose2sim(poses, stage, pose2sim, inputs.rig, up)
+            least = pose2sim_min_frames_of(poses.fps, pose2sim_min_frames)
+            _export_pose2sim(poses, stage, pose2sim, inputs.rig, up, least)
         write_report(report, stage)
         ok = np.isfinite(poses.points).all(-1)
         if pictures:
@@ -167,7 +171,19 @@ def z_up_world(points: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return points @ R.T, R
 
 
-def _export_pose2sim(poses, out: Path, orientation: str, rig, up) -> None:
+def pose2sim_min_frames_of(fps: float | None, given: int | None = None) -> int:
+    """The fewest frames for a person's own Pose2Sim files: ``given``, else one second
+    (a gait cycle lasts about one; OpenSim's scaling and IK say little about less).
+
+    >>> pose2sim_min_frames_of(25.0), pose2sim_min_frames_of(60.0, 10), pose2sim_min_frames_of(None)
+    (25, 10, 1)
+    """
+    if given is not None:
+        return int(given)
+    return max(1, int(np.ceil(fps))) if fps else 1
+
+
+def _export_pose2sim(poses, out: Path, orientation: str, rig, up, min_frames: int = 1) -> None:
     """Per-person Pose2Sim files in ``out/pose-3d/``, in a Z-up world (Pose2Sim's axes assume
     one); a run they cannot describe (no frame rate, nobody with every IK marker in some
     frame) is said, not fatal."""
@@ -185,7 +201,8 @@ def _export_pose2sim(poses, out: Path, orientation: str, rig, up) -> None:
         log.info("the world's up is not +z: the Pose2Sim files are turned to put it along +z")
         poses = dataclasses.replace(poses, points=points)
     try:
-        write_pose2sim(poses, out / "pose-3d", stem="poses", orientation=orientation)
+        write_pose2sim(poses, out / "pose-3d", stem="poses", orientation=orientation,
+                       min_frames=min_frames)  # fmt: skip
     except InputError as e:
         log.warning("skipping the Pose2Sim files (pose-3d/): %s", e)
 

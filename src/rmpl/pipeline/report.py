@@ -24,6 +24,10 @@ What is measured (the report states the same):
 - **Per person**: frames present, frames and joints whose gaps were filled by
   interpolation (flag INTERPOLATED), the estimated standing height
   (:func:`rmpl.anthropometry.estimate_height`), and the view check's verdict.
+- **Identities**: how the tracker's fragments became one track per person
+  (:mod:`rmpl.pipeline.identity`): per track its frames, fragments and height, and every
+  merge (a duplicate, a fragment re-linked across a gap, one folded in by ``--people``)
+  and drop (too short, a ghost) with its evidence; when the run says (``Poses3D.identity``).
 - **Floor**: the floor plane the lifter was given (the user's or one estimated from the
   run, :func:`rmpl.pipeline.runner.run_with_floor`), or none; when the caller says.
 
@@ -82,6 +86,8 @@ class RunReport:
             with more cameras.
         floor: the floor the lifter was given (:func:`floor_entry`), or None when not
             recorded.
+        identity: how the tracks were formed (:func:`identity_entry`), or None when the
+            run does not say (one person, or poses read from a file).
     """
 
     poses: Poses3D
@@ -94,6 +100,7 @@ class RunReport:
     notes: list[str] = field(default_factory=list)
     one_camera: dict | None = None
     floor: dict | None = None
+    identity: dict | None = None
 
     @property
     def exit_code(self) -> int:
@@ -135,6 +142,7 @@ class RunReport:
             "notes": self.notes,
             "one_camera": self.one_camera,
             "floor": self.floor,
+            "identity": self.identity,
         }  # fmt: skip
 
     def to_markdown(self) -> str:
@@ -309,7 +317,31 @@ def build_report(
     return RunReport(
         poses, consistency, height_notes, people, cameras, joints, disagreements, notes,
         _one_camera(poses) if len(rig) == 1 else None, floor_entry(floor),
+        identity_entry(poses),
     )  # fmt: skip
+
+
+def identity_entry(poses: Poses3D) -> dict | None:
+    """The report's ``identity`` entry: the run's record (``Poses3D.identity``, from
+    :meth:`rmpl.pipeline.identity.Identities.to_json`) with a row per track (``person``,
+    ``frames``, ``fragments``, ``height_m``, ``merged``: the merges into it); None without a
+    record."""
+    rec = poses.identity
+    if rec is None or len(rec.get("track_fragments", ())) != poses.num_people:
+        return None
+    heights = poses.heights if poses.heights is not None else np.full(poses.num_people, np.nan)
+    rows = []
+    for p, pid in enumerate(poses.person_ids.tolist()):
+        parts = rec["track_fragments"][p]
+        present = ~np.isnan(poses.points[:, p]).all((-1, -2))
+        rows.append({
+            "person": int(pid),
+            "frames": int(present.sum()),
+            "fragments": list(parts),
+            "merged": sum(m["into"] in parts for m in rec["merges"]),
+            "height_m": None if np.isnan(heights[p]) else round(float(heights[p]), 3),
+        })  # fmt: skip
+    return {**rec, "rows": rows}
 
 
 ONE_CAMERA_STATEMENT = (
@@ -583,6 +615,8 @@ def _markdown(r: RunReport) -> str:
                if row["height_note"]]  # fmt: skip
     if unknown:
         md += ["", "Height unknown for " + "; ".join(unknown) + "."]
+    if r.identity is not None:
+        md += ["", "## Identities", ""] + _identity_lines(r.identity)
     md += ["", "## View disagreements", ""]
     if r.disagreements:
         md += _table(
@@ -644,6 +678,50 @@ def _markdown(r: RunReport) -> str:
     if r.notes:
         md += ["", "## Notes", ""] + [f"- {n}" for n in r.notes]
     return "\n".join(md) + "\n"
+
+
+_MERGE_TEXT = {
+    "duplicate": "the same person seen twice (torso centres {distance_m} m apart)",
+    "relinked": "re-linked across a gap of {gap_frames} frames ({distance_m} m, body "
+    "difference {body_difference})",
+    "people": "folded in by --people (gap {gap_frames} frames, body difference {body_difference})",
+    "people-body": "folded in by --people (between its frames; body difference {body_difference})",
+}
+
+
+class _Blank(dict):
+    """Fields a merge does not have read as "-"."""
+
+    def __missing__(self, key: str) -> str:
+        return "-"
+
+
+def _identity_lines(rec: dict) -> list[str]:
+    """The report's identity table, then one line per merge and drop."""
+    md = [
+        f"{rec['tracks']} tracks from the tracker's {rec['fragments']} fragments: "
+        f"{len(rec['merges'])} merged, {len(rec['drops'])} dropped "
+        "(rules: `rmpl.pipeline.identity`).",
+        "",
+    ]
+    rows = [{**row, "fragments_text": ", ".join(map(str, row["fragments"]))}
+            for row in rec["rows"]]  # fmt: skip
+    md += _table(
+        rows,
+        [("person", "person"), ("frames", "frames"), ("fragments_text", "tracker fragments"),
+         ("merged", "merges"), ("height_m", "height (m)")],
+    )  # fmt: skip
+    if rec["merges"] or rec["drops"]:
+        md.append("")
+    owner = {f: row["person"] for row in rec["rows"] for f in row["fragments"]}
+    for m in rec["merges"]:
+        kind = m["kind"] if m["kind"] != "people" or "gap_frames" in m else "people-body"
+        text = _MERGE_TEXT.get(kind, kind).format_map(_Blank({k: _cell(v) for k, v in m.items()}))
+        md.append(f"- fragment {m['fragment']} -> person {owner.get(m['into'], '-')}: {text}")
+    for d in rec["drops"]:
+        md.append(f"- fragment {d['fragment']} dropped ({d['kind']}, {d['frames']} frames): "
+                  f"{d['reason']}")  # fmt: skip
+    return md
 
 
 def write_report(report: RunReport, folder: Path) -> list[Path]:

@@ -37,6 +37,7 @@ from rmpl.geometry.camera import Rig
 from rmpl.io.keypoints import FAR_MARGIN, drop_far_keypoints
 from rmpl.io.poses import JointSource, Poses3D
 from rmpl.pipeline.association import Association, AssociationConfig, associate
+from rmpl.pipeline.identity import IdentityConfig
 from rmpl.skeleton import BY_COUNT
 
 __all__ = [
@@ -84,6 +85,8 @@ class RunConfig:
         min_track_frames: drop tracks present in fewer frames than this (ghosts from a
             one-frame false association); 1 keeps every track.
         association: cross-view association thresholds.
+        identity: the rules that join the tracker's fragments into one track per person
+            (:mod:`rmpl.pipeline.identity`; its ``min_frames`` is ``min_track_frames``).
     """
 
     method: str = "rmpl"
@@ -104,6 +107,7 @@ class RunConfig:
     max_missed: int = 10
     min_track_frames: int = 3
     association: AssociationConfig = field(default_factory=AssociationConfig)
+    identity: IdentityConfig = field(default_factory=IdentityConfig)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -312,7 +316,7 @@ def estimate(
 def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = None):
     """The floor under a run's own people: each associated person of each frame
     triangulated (DLT, the joints two or more views see), then
-    :func:`rmpl.pipeline.monocular.floor_from_poses` (the lowest ankle of every pose that
+    :func:`rmpl.pipeline.depth_cues.floor_from_poses` (the lowest ankle of every pose that
     may touch the floor).
 
     Args:
@@ -330,7 +334,7 @@ def estimate_floor(people: list[Association], rig: Rig, up: np.ndarray | None = 
 
     from rmpl.geometry.triangulate import triangulate
     from rmpl.inference import estimate_up
-    from rmpl.pipeline.monocular import floor_from_poses
+    from rmpl.pipeline.depth_cues import floor_from_poses
 
     found = [a for a in people if len(a)]
     if not found:
@@ -404,19 +408,21 @@ def track_people(
     return _track(points, num_views, config)[:3]
 
 
-def _track(points: list[np.ndarray], num_views: list[np.ndarray], config: RunConfig):
-    """:func:`track_people` plus the index (T, P) of each track's person per frame."""
+def _track(points: list[np.ndarray], num_views: list[np.ndarray], config: RunConfig, **seen):
+    """:func:`track_people` plus the index (T, P) of each track's person per frame and the
+    identity record (``seen``: :func:`identity_index`'s ``fps``, ``people``, ``rig``)."""
     T = len(points)
     J = points[0].shape[-2] if T else 17
+    record = None
     if all(len(p) <= 1 for p in points):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in points]).reshape(T, 1), [0]
     else:
-        index, ids = track_index(points, config)
+        index, ids, record = identity_index(points, config, **seen)
     tracks = np.full((T, index.shape[1], J, 3), np.nan)
     views = np.zeros(tracks.shape[:3], int)
     for t, p in zip(*np.nonzero(index >= 0), strict=True):
         tracks[t, p], views[t, p] = points[t][index[t, p]], num_views[t][index[t, p]]
-    return tracks, views, np.asarray(ids), index
+    return tracks, views, np.asarray(ids), index, record
 
 
 def view_records(
@@ -464,27 +470,41 @@ def view_records(
 
 def track_index(points: list[np.ndarray], config: RunConfig) -> tuple[np.ndarray, np.ndarray]:
     """Identities over time as indices: (T, P) the person of each track in each frame (-1
-    where absent) and the track ids (P,). Tracks in fewer than ``min_track_frames`` frames
-    are dropped.
+    where absent) and the track ids (P,): :func:`identity_index` without the ghost rule."""
+    return identity_index(points, config)[:2]
+
+
+def identity_index(points: list[np.ndarray], config: RunConfig, fps=None, people=None, rig=None):
+    """The tracker's fragments (:func:`rmpl.pipeline.tracking.track_indices`) joined into
+    identities by :func:`rmpl.pipeline.identity.resolve` (duplicates, gaps, ``--people``;
+    identities in fewer than ``min_track_frames`` frames dropped; with ``people``, the
+    per-frame :class:`Association` list, and ``rig`` the ghost rule too).
 
     The tracker matches people on the COCO-17 joints, the first 17 of every joint set rmpl
     answers in (HALPE-26's head top, neck, mid-hip and feet do not vote), so that a COCO-17
-    and a HALPE-26 answer are tracked alike."""
+    and a HALPE-26 answer are tracked alike.
+
+    Returns:
+        index (T, P), ids (P,) and the :class:`rmpl.pipeline.identity.Identities`.
+    """
+    from dataclasses import replace
+
+    from rmpl.pipeline.identity import resolve, view_counts
     from rmpl.pipeline.tracking import track_indices
 
     kwargs = {"max_distance": config.track_distance, "max_missed": config.max_missed}
-    index = track_indices([p[:, :_COCO_JOINTS] for p in points], **kwargs)
-    ids = np.arange(index.shape[1], dtype=np.int64)
-    seen = np.zeros(index.shape, bool)  # a track has a joint in that frame
-    for t, p in zip(*np.nonzero(index >= 0), strict=True):
-        seen[t, p] = np.isfinite(points[t][index[t, p]]).all(-1).any()
-    keep = seen.sum(0) >= config.min_track_frames
-    if keep.any() and not keep.all():
-        log.info(
-            "dropping %d tracks seen in < %d frames", int((~keep).sum()), config.min_track_frames
-        )
-        index, ids = index[:, keep], ids[keep]
-    return index, ids
+    points = [p[:, :_COCO_JOINTS] for p in points]
+    index = track_indices(points, **kwargs)
+    views = cameras = None
+    if people is not None and rig is not None:
+        views, cameras = view_counts(people, points, rig)
+    rules = replace(config.identity, min_frames=config.min_track_frames)
+    found = resolve(points, index, rules, fps, views, cameras)
+    log.info(
+        "identities: %d tracks from the tracker's %d fragments (%d merged, %d dropped)",
+        found.index.shape[1], found.num_fragments, len(found.merges), len(found.drops),
+    )  # fmt: skip
+    return found.index, np.arange(found.index.shape[1], dtype=np.int64), found
 
 
 def smooth(
@@ -552,8 +572,8 @@ def _lift_people(
     people, rig: Rig, fps: float | None, cfg: RunConfig, joints: str | None, floor=None
 ):
     """:func:`lift_people` plus the index (T, P) of each track's person per frame, the
-    model's joint set and the floor it was given (``floor`` checked by
-    :func:`_checked_floor_spec`)."""
+    model's joint set, the floor it was given (``floor`` checked by
+    :func:`_checked_floor_spec`) and the identity record (None with one person)."""
     from rmpl.inference import Lifter
     from rmpl.inference_temporal import TemporalLifter
     from rmpl.pipeline.tracklift import lift_tracks, tracks_2d
@@ -583,12 +603,13 @@ def _lift_people(
         index = np.zeros((T, 0), int)
         return (
             np.zeros((T, 0, J, 3)), empty, empty.astype(int), np.zeros(0, int), empty > 0, index,
-            name, floor,
+            name, floor, None,
         )  # fmt: skip
+    record = None
     if all(len(p) <= 1 for p in pts):  # a single person: no identities to keep
         index, ids = np.array([[0 if len(p) else -1] for p in pts]), np.array([0])
     else:
-        index, ids = track_index(pts, cfg)
+        index, ids, record = identity_index(pts, cfg, fps, people, rig)
     kp, sc = tracks_2d(people, index)
     named = input_skeleton(kp.shape[-2], joints)
     tracks, radius, views = lift_tracks(
@@ -596,7 +617,7 @@ def _lift_people(
     )
     filled = np.broadcast_to(~(sc > 0).any((-1, -2))[..., None], views.shape)
     interpolated = filled & np.isfinite(tracks).all(-1)
-    return tracks, radius, views, ids, interpolated, index, name, floor
+    return tracks, radius, views, ids, interpolated, index, name, floor, record
 
 
 def check_cutoff(cutoff: float, fps: float) -> None:
@@ -707,20 +728,12 @@ def run_with_floor(
     uncertainty = None
     if _is_temporal(cfg):  # whole tracks through the temporal lifter: it is the filter
         answer = _lift_people(people, rig, fps, cfg, joints, floor)
-        tracks, uncertainty, views, ids, interpolated, index, skeleton, floor = answer
+        tracks, uncertainty, views, ids, interpolated, index, skeleton, floor, record = answer
         membership, excluded = view_records(people, index, present)
     else:
-        lifter = _lifter(cfg)
-        reads = lifter is not None and lifter.reads_floor
-        floor = _run_floor(floor, people, rig, cfg, reads)
-        fn = _estimator(cfg, used=True, joints=joints, floor=floor, lifter=lifter)
-        skeleton = fn.skeleton or input_skeleton(keypoints.shape[-2], joints)
-        pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
-        tracks, views, ids, index = _track(pts, nv, cfg)
-        membership, excluded = view_records(people, index, present, nv, used)
-        interpolated = np.zeros(tracks.shape[:-1], bool)
-        if temporal:
-            tracks, interpolated = smooth(tracks, fps, cfg)
+        j2d = keypoints.shape[-2]
+        answer = _per_frame(people, present, rig, fps, cfg, temporal, progress, joints, floor, j2d)
+        tracks, views, ids, interpolated, membership, excluded, skeleton, floor, record = answer
     ok = np.isfinite(tracks).all(-1)
     source = JointSource.LIFTED if cfg.method == "rmpl" else JointSource.TRIANGULATED
     flags = np.where(interpolated, int(JointSource.INTERPOLATED), np.where(ok, int(source), 0))
@@ -738,8 +751,29 @@ def run_with_floor(
         membership=membership,
         views_excluded=np.where(ok.any(-1)[..., None], excluded, 0),
         camera_names=rig.names,
+        identity=None if record is None else record.to_json(),
     )
     return poses, floor
+
+
+def _per_frame(people, present, rig: Rig, fps, cfg: RunConfig, temporal, progress, joints,
+               floor, j2d: int):  # fmt: skip
+    """:func:`run_with_floor` with a per-frame estimator: estimate, track, then (``temporal``)
+    smooth (``j2d``: the 2D's joint count). Returns tracks, views, ids, interpolated,
+    membership, views excluded, the answer's joint set, the floor the estimator read and the
+    identity record."""
+    lifter = _lifter(cfg)
+    reads = lifter is not None and lifter.reads_floor
+    floor = _run_floor(floor, people, rig, cfg, reads)
+    fn = _estimator(cfg, used=True, joints=joints, floor=floor, lifter=lifter)
+    skeleton = fn.skeleton or input_skeleton(j2d, joints)
+    pts, nv, used = estimate(people, rig, cfg, progress=progress, fn=fn, used=True)
+    tracks, views, ids, index, record = _track(pts, nv, cfg, fps=fps, people=people, rig=rig)
+    membership, excluded = view_records(people, index, present, nv, used)
+    interpolated = np.zeros(tracks.shape[:-1], bool)
+    if temporal:
+        tracks, interpolated = smooth(tracks, fps, cfg)
+    return tracks, views, ids, interpolated, membership, excluded, skeleton, floor, record
 
 
 def _lifter(cfg: RunConfig):

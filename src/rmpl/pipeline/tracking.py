@@ -5,7 +5,9 @@ source). A track predicts where its person will be with a constant-velocity mode
 predictions and the new people are matched by the Hungarian algorithm on the mean
 distance between their joints, and a match farther than ``max_distance`` is refused
 (gating). A person left unmatched starts a new track; a track unmatched for more than
-``max_missed`` frames in a row ends and is never resumed.
+``max_missed`` frames in a row ends and is never resumed here: joining such fragments
+(a person who leaves and returns, one person tracked twice) is
+:func:`rmpl.pipeline.identity.resolve`'s work, which ``rmpl run`` applies next.
 
 Shape glossary: ``T`` frames, ``N`` people of one frame, ``P`` tracks, ``J`` joints.
 Metres; a missing joint is NaN.

@@ -216,7 +216,7 @@ class BodyModel:
 
     Example (not run here, needs ``rmpl[synth]``)::
 
-        model = BodyModel(cache_dir="/work/cache/anny")
+        model = BodyModel(cache_dir=Path.home() / ".cache/rmpl/anny")
         pose = model.sample_poses(8, rng=0)
         bodies = model(pose, sample_phenotypes(8, rng=0))
     """

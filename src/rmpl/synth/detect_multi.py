@@ -33,7 +33,7 @@ The networks run on MediaPipe's own TFLite runtime (XNNPACK) through the Tasks
 normalisation metadata, which the wheel's files lack: :func:`model_buffer` adds it (with
 mediapipe's metadata writer) and drops the landmark network's segmentation and heat-map
 outputs, in memory. The same bundle also makes MediaPipe's ``PoseLandmarker`` Task run
-(:func:`pose_landmarker_bundle`), which ``scripts/bench_detect.py`` compares against.
+(:func:`pose_landmarker_bundle`), which ``rmpl.benchmarks.bench_detect`` compares against.
 
 Pixels follow rmpl's convention (from the top-left, pixel ``(i, j)`` centred on ``(i, j)``);
 inside this module coordinates are continuous (the image's left edge is x = 0), as

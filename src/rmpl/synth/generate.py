@@ -435,6 +435,9 @@ def _detector_factory(name: str):
 _OPTION_CLASSES = {
     "blazepose-multi": ("rmpl.synth.detect_multi", "BlazePoseMulti"),
     "blazepose-multi-static": ("rmpl.synth.detect_multi", "BlazePoseMulti"),
+    "movenet": ("rmpl.synth.detect_movenet", "MoveNet"),
+    "movenet-blazepose": ("rmpl.synth.detect_movenet", "MoveNetBlazePose"),
+    "movenet-blazepose-static": ("rmpl.synth.detect_movenet", "MoveNetBlazePose"),
 }
 
 
