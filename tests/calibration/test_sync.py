@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import numpy as np
@@ -128,3 +129,23 @@ def test_command_writes_sync_json(tmp_path):
     assert np.array_equal(np.round(read_sync(out).offset_frames), [0, 12, -9])
     assert main(["sync", "--keypoints", str(tmp_path / "kp.npz"), "--fps", "30", "40",
                  "--out", str(out)]) == 2  # fmt: skip
+
+
+def test_run_applies_a_sync_file_and_reports_it(tmp_path):
+    from rmpl.cli import main
+    from rmpl.io.calibration import save_rig
+    from rmpl.io.keypoints import Keypoints2D, save_keypoints
+
+    offsets = np.array([0.0, 4 / 30, -3 / 30])
+    kp, rig = _recording(offsets, fps=np.full(3, 30.0), n=40, people=(1.75,))
+    save_rig(rig, tmp_path / "calib.toml")
+    save_keypoints(Keypoints2D(kp, np.isfinite(kp[..., 0]) * 0.9, "coco17", rig.names,
+                               None, 30.0), tmp_path / "kp.npz")  # fmt: skip
+    write_sync(Sync(rig.names, np.full(3, 30.0), offsets, np.ones(3)), tmp_path / "sync.json")
+    args = ["run", "--calib", str(tmp_path / "calib.toml"), "--keypoints",
+            str(tmp_path / "kp.npz"), "--method", "triangulate", "--no-pictures",
+            "--sync", str(tmp_path / "sync.json"), "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(args) in (0, 3)
+    report = json.loads((tmp_path / "run" / "report.json").read_text())
+    assert report["sync"]["cameras"]["cam1"]["offset_frames"] == 4
+    assert "Synchronisation" in (tmp_path / "run" / "report.md").read_text()

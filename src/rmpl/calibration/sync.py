@@ -709,3 +709,38 @@ def _shift_view(xy: np.ndarray, sc: np.ndarray, frames: np.ndarray):
     tracks, scores = link_people(xy, sc)
     out = _sample(np.concatenate([tracks, scores[..., None]], -1), frames)
     return out[..., :2], np.nan_to_num(out[..., 2])
+
+
+def synced_inputs(inputs, sync: str | None, source=None):
+    """``rmpl run --sync``: the run's inputs on the reference camera's clock.
+
+    Args:
+        inputs: :class:`rmpl.pipeline.inputs.Inputs` (views in the rig's order).
+        sync: None (as recorded), a ``sync.json`` path, or ``"auto"`` (found now from
+            the people in view through the run's calibration, :func:`find_sync`).
+
+    Returns:
+        The inputs with the 2D shifted / interpolated (:func:`apply_sync`) and ``sync``
+        set to the offsets used (``sync.json``'s document, for the run report).
+    """
+    from dataclasses import replace
+
+    from rmpl.io.keypoints import Keypoints2D
+
+    if sync is None:
+        return inputs
+    kp = Keypoints2D(inputs.keypoints, inputs.scores, inputs.skeleton, inputs.rig.names,
+                     inputs.frames, inputs.fps)  # fmt: skip
+    if sync == "auto":
+        if not inputs.fps:
+            raise InputError(source, "--fps", "the frame rate, to synchronise (--sync auto)")
+        found = find_sync(kp.keypoints, inputs.fps, kp.views, inputs.rig, source=source)
+    else:
+        found = read_sync(sync)
+    out = apply_sync(kp, found, source)
+    doc = found.to_dict()
+    doc["source"] = "auto" if sync == "auto" else str(sync)
+    log.info("synchronised (%s): offsets %s frames", doc["source"],
+             {n: c["offset_frames"] for n, c in doc["cameras"].items()})  # fmt: skip
+    return replace(inputs, keypoints=out.keypoints, scores=out.scores,
+                   frames=np.asarray(out.frames), fps=out.fps, sync=doc)  # fmt: skip
