@@ -60,6 +60,7 @@ ADULT_STATURE_SD = 0.10
 PROPORTION_SD = 0.04
 MIN_SCORE = 0.3
 RANSAC_PX = 4.0
+PNP_PX = 12.0  # the start's two cameras are a few degrees off: PnP inliers are looser
 MIN_COMMON = 60  # joint correspondences a pair of tracks needs
 HYPOTHESIS_POINTS = 1000  # joints of a track pair a hypothesis is fitted on
 SUPPORT_PX = 10.0  # median Sampson distance of a track pair of one person
@@ -292,7 +293,7 @@ def _pnp(X: np.ndarray, x: np.ndarray, focal: float):
         return None
     X, x = X[ok].astype(np.float64), x[ok].astype(np.float64)
     found, rvec, tvec, inl = cv2.solvePnPRansac(
-        X, x, np.eye(3), None, reprojectionError=RANSAC_PX / focal, iterationsCount=500
+        X, x, np.eye(3), None, reprojectionError=PNP_PX / focal, iterationsCount=500
     )
     if not found or inl is None or len(inl) < 12:
         return None
@@ -354,6 +355,8 @@ def _start(tracks, rig, source):
             if got is not None and (best is None or got[2] > best[1][2]):
                 best = (c, got)
         if best is None:
+            best = _place_by_pair(obs, R, t, placed, pairs, X)
+        if best is None:
             missing = [rig[c].name for c in sorted(set(range(V)) - placed)]
             raise InputError(
                 source,
@@ -365,6 +368,50 @@ def _start(tracks, rig, source):
         R[c], t[c] = Rc, tc
         placed.add(c)
     return R, t, groups, (obs, ids), a, b
+
+
+def _bone_median(X: np.ndarray) -> float:
+    from rmpl.calibration.people_bundle import BONES
+
+    d = np.concatenate([np.linalg.norm(X[..., p, :] - X[..., q, :], axis=-1).ravel()
+                        for p, q in BONES])  # fmt: skip
+    d = d[np.isfinite(d)]
+    return float(np.median(d)) if len(d) >= 20 else np.nan
+
+
+def _place_by_pair(obs, R, t, placed: set, pairs: dict, X: np.ndarray):
+    """A camera no point of two placed cameras reaches: from its essential matrix with a
+    placed camera, the baseline set so that bones are as long as in the placed cameras'
+    reconstruction. Returns (camera, (R, t, inliers)) or None."""
+    import cv2
+
+    ref = _bone_median(X)
+    if not np.isfinite(ref):
+        return None
+    best = None
+    for (i, j), (n, E) in pairs.items():
+        if (i in placed) == (j in placed):
+            continue
+        p, c = (i, j) if i in placed else (j, i)
+        xp, xc = obs[:, :, p].reshape(-1, 2), obs[:, :, c].reshape(-1, 2)
+        ok = np.isfinite(xp).all(-1) & np.isfinite(xc).all(-1)
+        if ok.sum() < MIN_COMMON:
+            continue
+        if p < c:  # x_c = Rr x_p + tr
+            _, Rr, tr, _ = cv2.recoverPose(E, xp[ok], xc[ok], np.eye(3))
+            tr = tr[:, 0]
+        else:
+            _, Rr, tr, _ = cv2.recoverPose(E, xc[ok], xp[ok], np.eye(3))
+            Rr, tr = Rr.T, -Rr.T @ tr[:, 0]
+        Rc = Rr @ R[p]
+        R2, t2 = R.copy(), t.copy()
+        R2[c], t2[c] = Rc, Rr @ t[p] + tr
+        use = np.isin(np.arange(len(R)), [p, c])
+        X1 = triangulate_normalised(np.moveaxis(obs, 2, 3), R2, t2, use)
+        scale = ref / _bone_median(X1)
+        if np.isfinite(scale) and (best is None or n > best[1][2]):
+            best = (c, (Rc, Rr @ t[p] + scale * tr, n))
+    return best
 
 
 # --------------------------------------------------------------------------- adjustment
