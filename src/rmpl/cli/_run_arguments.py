@@ -40,6 +40,10 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--fps", type=positive, default=None, help="frame rate if the input has none"
     )
+    parser.add_argument(
+        "--sync", default=None, metavar="SYNC", help="sync.json (rmpl sync) or 'auto': put "
+        "every camera on the first one's clock (the report states the offsets)"
+    )  # fmt: skip
     _add_tracking_arguments(parser)
     _add_output_arguments(parser)
 

@@ -81,6 +81,7 @@ def _log_uncertainty(poses) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rmpl.calibration.sync import synced_inputs
     from rmpl.cli._common import (
         axis_vector,
         check_cameras,
@@ -98,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     up = axis_vector(args.up)
     inputs = load_calibration_and_2d(args, cache=out / "keypoints2d.npz")
+    inputs = synced_inputs(inputs, getattr(args, "sync", None), ", ".join(args.keypoints or []))
     check_cameras(inputs.rig, args.calib, args.method)
     auto_model = args.model is None
     args.model = args.model or choose_model(len(inputs.rig), inputs.fps, args.method)

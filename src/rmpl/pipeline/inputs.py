@@ -67,6 +67,7 @@ class Inputs:
     frames: np.ndarray
     fps: float | None
     skeleton: str = "coco17"
+    sync: dict | None = None  # the offsets applied (rmpl run --sync), for the report
 
 
 def _shelf4d_root(paths: list[str]) -> Path | None:

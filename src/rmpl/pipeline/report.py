@@ -101,6 +101,7 @@ class RunReport:
     one_camera: dict | None = None
     floor: dict | None = None
     identity: dict | None = None
+    sync: dict | None = None  # the offsets applied to the 2D (rmpl run --sync)
 
     @property
     def exit_code(self) -> int:
@@ -143,6 +144,7 @@ class RunReport:
             "one_camera": self.one_camera,
             "floor": self.floor,
             "identity": self.identity,
+            "sync": self.sync,
         }  # fmt: skip
 
     def to_markdown(self) -> str:
@@ -317,7 +319,7 @@ def build_report(
     return RunReport(
         poses, consistency, height_notes, people, cameras, joints, disagreements, notes,
         _one_camera(poses) if len(rig) == 1 else None, floor_entry(floor),
-        identity_entry(poses),
+        identity_entry(poses), getattr(inputs, "sync", None),
     )  # fmt: skip
 
 
@@ -572,6 +574,10 @@ def _md_summary(r: RunReport) -> list[str]:
     ]
     if r.floor is not None:
         md += [f"Floor: {r.floor['description']}.", ""]
+    if r.sync is not None:
+        offs = ", ".join(f"{n} {c['offset_frames']} frames ({c['offset_seconds']:+.3f} s)"
+                         for n, c in r.sync["cameras"].items())  # fmt: skip
+        md += [f"Synchronisation ({r.sync['source']}, {r.sync['method']}): {offs}.", ""]
     md += [
         "## Verdict",
         "",

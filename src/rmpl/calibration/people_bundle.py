@@ -1,0 +1,257 @@
+"""The bundle adjustment of calibration from people: every camera and the 3D joints of many
+frames, with constant bone lengths per person and a robust loss.
+
+Parameters, one vector: each free camera's rotation vector and translation (6), each
+person's bone lengths (one per bone of :data:`BONES`), each 3D joint (3). Residuals:
+
+- reprojection, pixels: ``f * (x_normalised(projected) - x_normalised(observed))`` for every
+  observation (a joint of a person in a view and frame);
+- bones, ``(|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA``: a bone differing by one
+  :data:`BONE_SIGMA` from its person's length weighs as a :data:`PIXEL_SIGMA` pixel error;
+- the gauge: one camera fixed (its pose is not a parameter) and the distance between it and
+  a second camera held at its start value (the scale comes afterwards).
+
+SciPy's ``least_squares`` (trust region, LSMR) gets the Jacobian's sparsity pattern; the
+loss is ``soft_l1`` with a scale of :data:`PIXEL_SIGMA`; observations further than a
+threshold that tightens over the rounds (:data:`ROUNDS`) are dropped between rounds.
+
+Shape glossary: ``M`` observations, ``N`` 3D points, ``V`` cameras, ``G`` people.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rmpl.geometry.camera import rodrigues
+
+__all__ = ["BONES", "BundleProblem", "BundleResult", "adjust", "centre_covariance"]
+
+#: COCO-17 bones held constant per person: (joint a, joint b).
+BONES = (
+    (15, 13),
+    (13, 11),
+    (16, 14),
+    (14, 12),
+    (11, 12),
+    (5, 11),
+    (6, 12),
+    (5, 6),
+    (5, 7),
+    (7, 9),
+    (6, 8),
+    (8, 10),
+)
+BONE_SIGMA = 0.02
+PIXEL_SIGMA = 3.0
+#: Outlier thresholds of the successive rounds, pixels (the last round keeps the rest).
+ROUNDS = (40.0, 20.0, 10.0)
+GAUGE_WEIGHT = 1e3
+
+
+@dataclass
+class BundleProblem:
+    """Observations: ``cam`` (M,) camera index, ``point`` (M,) 3D point index, ``xy`` (M, 2)
+    normalised undistorted coordinates, ``focal`` (V,) pixels; ``bones`` (B, 2) point index
+    pairs with ``bone_person`` (B,) the index of their length (person * 12 + bone)."""
+
+    cam: np.ndarray
+    point: np.ndarray
+    xy: np.ndarray
+    focal: np.ndarray
+    bones: np.ndarray
+    bone_length: np.ndarray  # (B,) index into the lengths
+    member: np.ndarray | None = None  # (M,) the 2D track of each observation
+
+
+@dataclass
+class BundleResult:
+    """Cameras (R (V, 3, 3), t (V, 3)), points (N, 3), lengths (L,), the observations kept
+    (M,) bool, per-observation errors (M,) pixels, and SciPy's Jacobian at the solution."""
+
+    R: np.ndarray
+    t: np.ndarray
+    points: np.ndarray
+    lengths: np.ndarray
+    kept: np.ndarray
+    errors: np.ndarray
+    jac: object
+    free: list[int]
+    sigma: float
+
+
+def _unpack(x, V, free, fixed_R, fixed_t, num_lengths):
+    cams = x[: 6 * len(free)].reshape(-1, 6)
+    R = np.repeat(fixed_R[None], V, 0).copy()
+    t = np.repeat(fixed_t[None], V, 0).copy()
+    R[free] = rodrigues(cams[:, :3])
+    t[free] = cams[:, 3:]
+    lengths = x[6 * len(free) : 6 * len(free) + num_lengths]
+    points = x[6 * len(free) + num_lengths :].reshape(-1, 3)
+    return R, t, lengths, points
+
+
+def _residuals(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge):
+    R, t, lengths, X = _unpack(x, V, free, fixed[0], fixed[1], num_lengths)
+    c, p = prob.cam[mask], prob.point[mask]
+    Xc = np.einsum("mij,mj->mi", R[c], X[p]) + t[c]
+    z = np.where(np.abs(Xc[:, 2]) > 1e-9, Xc[:, 2], 1e-9)
+    proj = Xc[:, :2] / z[:, None]
+    reproj = ((proj - prob.xy[mask]) * prob.focal[c][:, None]).ravel()
+    a, b = prob.bones[:, 0], prob.bones[:, 1]
+    bone = (np.linalg.norm(X[a] - X[b], axis=-1) - lengths[prob.bone_length]) / BONE_SIGMA
+    i, j, d0 = gauge
+    Ci, Cj = -R[i].T @ t[i], -R[j].T @ t[j]
+    g = GAUGE_WEIGHT * (np.linalg.norm(Ci - Cj) - d0)
+    return np.concatenate([reproj, bone * PIXEL_SIGMA, [g]])
+
+
+def _sparsity(prob: BundleProblem, mask, V, free, num_lengths, num_points):
+    from scipy.sparse import coo_matrix
+
+    col = np.full(V, -1)
+    col[free] = np.arange(len(free))
+    nc, off = 6 * len(free), 6 * len(free) + num_lengths
+    c, p = prob.cam[mask], prob.point[mask]
+    M, B = len(c), len(prob.bones)
+    rows, cols = [], []
+    r2 = np.repeat(np.arange(2 * M).reshape(M, 2), 1, 0)  # (M, 2) rows of each observation
+    has = col[c] >= 0
+    cam_cols = 6 * col[c][has][:, None] + np.arange(6)  # (Mf, 6)
+    for k in range(2):
+        rows.append(np.repeat(r2[has, k], 6))
+        cols.append(cam_cols.ravel())
+        rows.append(np.repeat(r2[:, k], 3))
+        cols.append((off + 3 * p[:, None] + np.arange(3)).ravel())
+    br = 2 * M + np.arange(B)
+    rows += [br, np.repeat(br, 3), np.repeat(br, 3)]
+    cols += [
+        nc + prob.bone_length,
+        (off + 3 * prob.bones[:, :1] + np.arange(3)).ravel(),
+        (off + 3 * prob.bones[:, 1:] + np.arange(3)).ravel(),
+    ]
+    rows.append(np.full(nc, 2 * M + B))
+    cols.append(np.arange(nc))
+    r, cc = np.concatenate(rows), np.concatenate(cols)
+    shape = (2 * M + B + 1, off + 3 * num_points)
+    return coo_matrix((np.ones(len(r), np.int8), (r, cc)), shape=shape).tocsr()
+
+
+def adjust(
+    prob: BundleProblem,
+    R: np.ndarray,
+    t: np.ndarray,
+    points: np.ndarray,
+    lengths: np.ndarray,
+    fixed: int,
+    gauge_cam: int,
+    rounds: tuple[float, ...] = ROUNDS,
+    max_nfev: int = 60,
+) -> BundleResult:
+    """Adjust cameras, bone lengths and points; ``fixed`` camera's pose stays, the distance
+    from it to ``gauge_cam`` too. Returns the solution after the last round."""
+    from scipy.optimize import least_squares
+
+    from rmpl.geometry.camera import rotation_to_rodrigues
+
+    V = len(R)
+    free = [v for v in range(V) if v != fixed]
+    fixed_pose = (R[fixed], t[fixed])
+    d0 = float(np.linalg.norm(-R[fixed].T @ t[fixed] + R[gauge_cam].T @ t[gauge_cam]))
+    gauge = (fixed, gauge_cam, d0)
+    x = np.concatenate(
+        [np.c_[rotation_to_rodrigues(R[free]), t[free]].ravel(), lengths, points.ravel()]
+    )
+    mask = np.ones(len(prob.cam), bool)
+    L = len(lengths)
+    res = None
+    for threshold in (*rounds, None):
+        S = _sparsity(prob, mask, V, free, L, len(points))
+        res = least_squares(
+            _residuals,
+            x,
+            jac_sparsity=S,
+            loss="soft_l1",
+            f_scale=PIXEL_SIGMA,
+            x_scale="jac",
+            method="trf",
+            tr_solver="lsmr",
+            max_nfev=max_nfev,
+            args=(prob, mask, V, free, fixed_pose, L, gauge),
+        )
+        x = res.x
+        errors = _errors(x, prob, V, free, fixed_pose, L)
+        if threshold is None:
+            break
+        keep = errors <= max(threshold, 3.0 * float(np.median(errors[mask])))
+        keep &= ~_bad_members(prob, errors, max(threshold / 2, 2.0 * float(np.median(errors))))
+        if (keep == mask).all():
+            continue
+        mask = keep
+    R1, t1, lengths1, X1 = _unpack(x, V, free, *fixed_pose, L)
+    r = res.fun[: 2 * int(mask.sum())]
+    sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
+    return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+
+
+def _bad_members(prob: BundleProblem, errors: np.ndarray, limit: float) -> np.ndarray:
+    """Observations of the 2D tracks whose median error exceeds ``limit`` pixels: a track
+    given to the wrong person goes whole, not only its worst joints."""
+    if prob.member is None:
+        return np.zeros(len(errors), bool)
+    ids, inv = np.unique(prob.member, return_inverse=True)
+    med = np.array([np.median(errors[inv == k]) for k in range(len(ids))])
+    return med[inv] > limit
+
+
+def _errors(x, prob, V, free, fixed_pose, L) -> np.ndarray:
+    mask = np.ones(len(prob.cam), bool)
+    r = _residuals(x, prob, mask, V, free, fixed_pose, L, (0, 0, 0.0))
+    return np.linalg.norm(r[: 2 * len(prob.cam)].reshape(-1, 2), axis=-1)
+
+
+def centre_covariance(result: BundleResult, num_lengths: int) -> np.ndarray:
+    """Each camera centre's covariance (V, 3, 3), in the adjustment's units, from the
+    Gauss-Newton covariance of the camera parameters (points and lengths marginalised by
+    the Schur complement), scaled by the residuals' variance. The fixed camera gets 0."""
+    from scipy.sparse.linalg import splu
+
+    J = result.jac.tocsc()
+    nc = 6 * len(result.free)
+    Jc, Jp = J[:, :nc].toarray(), J[:, nc:]
+    Hcc = Jc.T @ Jc
+    Hpc = Jp.T @ Jc
+    Hpp = (Jp.T @ Jp).tocsc()
+    Hpp = Hpp + 1e-9 * _eye(Hpp.shape[0])
+    S = Hcc - Hpc.T @ splu(Hpp).solve(Hpc)
+    cov = np.linalg.pinv(S) * result.sigma**2
+    V = len(result.R)
+    out = np.zeros((V, 3, 3))
+    for k, v in enumerate(result.free):
+        Jcen = _centre_jacobian(result.R[v], result.t[v])
+        out[v] = Jcen @ cov[6 * k : 6 * k + 6, 6 * k : 6 * k + 6] @ Jcen.T
+    return out
+
+
+def _eye(n: int):
+    from scipy.sparse import identity
+
+    return identity(n, format="csc")
+
+
+def _centre_jacobian(R: np.ndarray, t: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """d(-R^T t)/d(rotation vector, t), (3, 6), by central differences."""
+    from rmpl.geometry.camera import rotation_to_rodrigues
+
+    p0 = np.r_[rotation_to_rodrigues(R), t]
+
+    def centre(p):
+        return -rodrigues(p[:3]).T @ p[3:]
+
+    J = np.zeros((3, 6))
+    for i in range(6):
+        d = np.zeros(6)
+        d[i] = eps
+        J[:, i] = (centre(p0 + d) - centre(p0 - d)) / (2 * eps)
+    return J
