@@ -9,7 +9,8 @@ import json
 import numpy as np
 import pytest
 
-from rmpl.calibration.people import calibrate_from_people, run_cli, similarity
+from rmpl.calibration.people import calibrate_from_people, similarity
+from rmpl.calibration.people_report import run_cli
 from rmpl.calibration.people_synth import moving_people, observe, ring_rig
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig, rodrigues

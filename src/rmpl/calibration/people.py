@@ -46,7 +46,6 @@ __all__ = [
     "calibrate_from_people",
     "intrinsics_only",
     "moved",
-    "run_cli",
     "similarity",
     "triangulate_normalised",
 ]
@@ -618,22 +617,14 @@ def calibrate_from_people(
     keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
     rig0 = intrinsics_only(intrinsics)
     _check(keypoints, scores, rig0, source)
-    V = len(rig0)
     focal = np.array([float(np.mean(np.diag(c.K)[:2])) for c in rig0])
     tracks = _tracks(keypoints, scores, rig0)
-    if start is None:
-        R, t, groups, obs, a, b = _start(tracks, rig0, source)
-    else:
-        R, t = start.R.copy(), start.t.copy()
-        groups = _group(tracks, *_people_matches(tracks, focal))  # not through start: it moved
-        obs = _observations(tracks, groups, V)
-        a, b = 0, int(np.argmax(np.linalg.norm(start.centers - start.centers[0], axis=-1)))
-    obs, ids = obs
+    R, t, groups, (obs, ids), a, b = _initial(tracks, rig0, focal, start, source)
     frames = _frames(obs, max_frames)
     if not len(frames) or not groups:
         raise InputError(source, "keypoints", "frames where two cameras see one person")
     obs, ids = obs[frames], ids[frames]
-    X = triangulate_normalised(np.moveaxis(obs, 2, 3), R, t, np.ones(V, bool))
+    X = triangulate_normalised(np.moveaxis(obs, 2, 3), R, t, np.ones(len(rig0), bool))
     s0 = _prescale(X) if start is None else 1.0
     t, X = t * s0, X * s0
     prob, X0, index = _problem(obs, X, focal, ids)
@@ -646,22 +637,59 @@ def calibrate_from_people(
     seen = np.bincount(prob.point[res.kept], minlength=len(X0))
     per_person = np.array([seen[index[:, g][index[:, g] >= 0]].sum() for g in range(len(groups))])
     heights = _heights(Xb)
-    if start is None:
-        s, sd, what = _scale(
-            Xb, heights, per_person, centres, cov, rig0, height, camera_distance, source
-        )
-        n, floor, low = _up_and_floor(Xb * s)
-        Rw, o = _world(n, floor.height, low, res.R[0])
-    else:
-        s, Rw, o, what, sd = _keep_frame(res.R, res.t, start)
-        floor = None
+    scene = (Xb, heights, per_person, centres, cov)
+    s, Rw, o, what, sd, floor = _frame(res, scene, rig0, start, height, camera_distance, source)
     Rn = np.einsum("vij,kj->vik", res.R, Rw)  # R Rw^T
     tn = s * (res.t + np.einsum("vij,j->vi", res.R, o / s))
     rig = Rig(tuple(Camera(c.K, Rn[v], tn[v], c.dist, c.size, c.name) for v, c in enumerate(rig0)))
+    people = _people_table(groups, rig0, per_person, heights, s)
+    return _result(rig, res, prob, cov, s, (what, sd), people, frames, floor, start)
+
+
+def _result(rig, res, prob, cov, s, scale, people, frames, floor, start) -> PeopleCalibration:
+    """The calibration with its per-camera RMS, centre uncertainty and what was used."""
+    V = len(rig)
     errors = res.errors
     rms = np.array([np.sqrt(np.mean(errors[res.kept & (prob.cam == v)] ** 2)) for v in range(V)])
     sd_centre = s * np.sqrt(np.linalg.eigvalsh(cov).max(-1).clip(0))
-    people = [
+    floor_text = "kept from the calibration refined"
+    if floor is not None:
+        floor_text = f"z = 0, {floor.source}"
+    kept = (int(res.kept.sum()), len(res.kept))
+    out = PeopleCalibration(rig, rms, sd_centre, *scale, people, frames, kept, floor_text)
+    if start is not None:
+        out.moved = moved(start, rig)
+    return out
+
+
+def _frame(res, scene, rig0: Rig, start: Rig | None, height, camera_distance, source):
+    """Scale, world rotation and origin, with the scale's source, its uncertainty and the
+    floor: from the people, or (``--refine``) kept from the calibration refined."""
+    Xb, heights, per_person, centres, cov = scene
+    if start is not None:
+        return (*_keep_frame(res.R, res.t, start), None)
+    s, sd, what = _scale(Xb, heights, per_person, centres, cov, rig0, height, camera_distance,
+                         source)  # fmt: skip
+    n, floor, low = _up_and_floor(Xb * s)
+    Rw, o = _world(n, floor.height, low, res.R[0])
+    return s, Rw, o, what, sd, floor
+
+
+def _initial(tracks, rig0: Rig, focal: np.ndarray, start: Rig | None, source):
+    """The start: cameras, people groups, observations and the two gauge cameras, from the
+    people alone or (``--refine``) from the calibration to correct."""
+    if start is None:
+        return _start(tracks, rig0, source)
+    R, t = start.R.copy(), start.t.copy()
+    groups = _group(tracks, *_people_matches(tracks, focal))  # not through start: it moved
+    obs = _observations(tracks, groups, len(rig0))
+    b = int(np.argmax(np.linalg.norm(start.centers - start.centers[0], axis=-1)))
+    return R, t, groups, obs, 0, b
+
+
+def _people_table(groups, rig0: Rig, per_person: np.ndarray, heights: np.ndarray, s: float):
+    """The report's people: their views, observations and stature."""
+    return [
         {
             "person": g,
             "views": {rig0[v].name: qs for v, qs in m.items()},
@@ -670,20 +698,6 @@ def calibrate_from_people(
         }
         for g, m in enumerate(groups)
     ]
-    out = PeopleCalibration(
-        rig,
-        rms,
-        sd_centre,
-        what,
-        sd,
-        people,
-        frames,
-        (int(res.kept.sum()), len(res.kept)),
-        f"z = 0, {floor.source}" if floor is not None else "kept from the calibration refined",
-    )
-    if start is not None:
-        out.moved = moved(start, rig)
-    return out
 
 
 def _prescale(X: np.ndarray) -> float:
@@ -723,10 +737,3 @@ def moved(before: Rig, after: Rig) -> list[dict]:
             }
         )
     return out
-
-
-def run_cli(args) -> int:
-    """``rmpl calibrate --from-people`` / ``--refine`` (see :mod:`.people_report`)."""
-    from rmpl.calibration.people_report import run_cli as run
-
-    return run(args)

@@ -62,17 +62,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Calibrate, check or hand over to calibration from people; returns the exit code."""
     if args.from_people or args.refine:
-        try:
-            from rmpl.calibration.people import run_cli
-        except ModuleNotFoundError as e:
-            if e.name != "rmpl.calibration.people":
-                raise
-            raise InputError(
-                None,
-                "--from-people",
-                "board calibration (--board)",
-                "calibration from people is not available in this version",
-            ) from None
+        from rmpl.calibration.people_report import run_cli
+
         return run_cli(args)
     if args.check:
         from rmpl.calibration.check import run_check
