@@ -16,7 +16,7 @@ NaN), and report.json's figures to the same tolerance.
 
 Example (the side-by-side measurement of docs/results.md)::
 
-    git archive 9db8ae6 src | tar -x -C /tmp/base
+    mkdir -p /tmp/base && git archive 9db8ae6 src | tar -x -C /tmp/base
     python -m rmpl.benchmarks.speed --calib ../shared/data/shelf_dev/calibration.json \\
         --keypoints ../shared/data/shelf_dev --baseline /tmp/base/src --repeat 3 --compare
 
