@@ -26,7 +26,7 @@ The same is ``rmpl bench --run ...`` with these options.
 video (decoding included), with the videos shared out among 1, 2, ... worker processes
 (``--workers``) running at once: frames/s per camera and for all cameras together::
 
-    python -m rmpl.benchmarks.speed --detect DEMO/videos/cam01.mp4 DEMO/videos/cam02.mp4 \
+    python -m rmpl.benchmarks.speed --detect DEMO/videos/cam01.mp4 DEMO/videos/cam02.mp4 \\
         --frames 100 --workers 1,2
 """
 
