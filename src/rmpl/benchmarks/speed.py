@@ -16,7 +16,7 @@ NaN), and report.json's figures to the same tolerance.
 
 Example (the side-by-side measurement of docs/results.md)::
 
-    git archive 9db8ae6 src | tar -x -C /tmp/base
+    mkdir -p /tmp/base && git archive 9db8ae6 src | tar -x -C /tmp/base
     python -m rmpl.benchmarks.speed --calib ../shared/data/shelf_dev/calibration.json \\
         --keypoints ../shared/data/shelf_dev --baseline /tmp/base/src --repeat 3 --compare
 
@@ -26,7 +26,7 @@ The same is ``rmpl bench --run ...`` with these options.
 video (decoding included), with the videos shared out among 1, 2, ... worker processes
 (``--workers``) running at once: frames/s per camera and for all cameras together::
 
-    python -m rmpl.benchmarks.speed --detect DEMO/videos/cam01.mp4 DEMO/videos/cam02.mp4 \
+    python -m rmpl.benchmarks.speed --detect DEMO/videos/cam01.mp4 DEMO/videos/cam02.mp4 \\
         --frames 100 --workers 1,2
 """
 
