@@ -23,12 +23,13 @@ from rmpl.errors import InputError
 from rmpl.geometry.camera import Rig
 from rmpl.geometry.triangulate import triangulate_robust
 from rmpl.io.keypoints import Keypoints2D
+from rmpl.pipeline.consistency import MOVED_PX, MOVED_RATIO
 
 __all__ = ["check_calibration", "run_check"]
 
 log = logging.getLogger(__name__)
 
-MOVED_PX, MOVED_RATIO, MIN_SCORE = 10.0, 3.0, 0.3
+MIN_SCORE = 0.3
 
 
 def _most_confident(kp: Keypoints2D) -> tuple[np.ndarray, np.ndarray]:

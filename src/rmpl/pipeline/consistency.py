@@ -99,6 +99,8 @@ __all__ = [
     "check_views",
     "format_ranges",
     "frame_ranges",
+    "held_out_px",
+    "moved_cameras",
     "person_2d",
 ]
 
@@ -106,6 +108,10 @@ log = logging.getLogger(__name__)
 
 #: Exit status of ``rmpl run`` when a person fails the check (outputs are written).
 EXIT_VIEWS_DISAGREE = 3
+#: A camera "moved since calibration" when its held-out error exceeds both this many pixels
+#: and :data:`MOVED_RATIO` times the median of the other cameras' (a rule fixed in advance,
+#: shared by ``rmpl calibrate --check`` and the run report).
+MOVED_PX, MOVED_RATIO = 10.0, 3.0
 
 #: Checks of at least this many person-frames (T x P) show a progress bar.
 PROGRESS_FROM = 5000
@@ -443,3 +449,29 @@ def format_ranges(ranges, limit: int = 6) -> str:
     text = [f"{a}" if a == b else f"{a}-{b}" for a, b in ranges[:limit]]
     more = f" (+{len(ranges) - limit} more)" if len(ranges) > limit else ""
     return ", ".join(text) + more
+
+
+def held_out_px(check: Consistency) -> np.ndarray:
+    """(V,) each camera's median held-out error in pixels: its 2D against the person placed
+    by the other cameras, over every compared person-frame; NaN where none was compared."""
+    px = check.error * check.size  # (T, P, V)
+    out = np.full(px.shape[-1], np.nan)
+    for v in range(px.shape[-1]):
+        e = px[..., v][np.isfinite(px[..., v])]
+        if e.size:
+            out[v] = float(np.median(e))
+    return out
+
+
+def moved_cameras(median_px: np.ndarray) -> np.ndarray:
+    """(V,) bool: the worst camera, when its held-out median error exceeds both
+    :data:`MOVED_PX` and :data:`MOVED_RATIO` times the others' median (three cameras or
+    more, each measured)."""
+    median_px = np.asarray(median_px, float)
+    moved = np.zeros(len(median_px), bool)
+    if len(median_px) < 3 or not np.isfinite(median_px).all():
+        return moved
+    worst = int(np.argmax(median_px))
+    rest = float(np.median(np.delete(median_px, worst)))
+    moved[worst] = median_px[worst] > MOVED_PX and median_px[worst] > MOVED_RATIO * rest
+    return moved

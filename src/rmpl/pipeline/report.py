@@ -58,6 +58,8 @@ from rmpl.pipeline.consistency import (
     ConsistencyConfig,
     check_views,
     format_ranges,
+    held_out_px,
+    moved_cameras,
     person_2d,
 )
 from rmpl.skeleton import BY_COUNT, SKELETONS, embed, embed_scores
@@ -431,6 +433,8 @@ def _people(poses, measured, heights, notes, consistency) -> list[dict]:
 def _cameras(poses, rig, consistency, err_px, err_mm, with2d, measured) -> list[dict]:
     rows = []
     st = consistency.status
+    held_out = held_out_px(consistency)
+    moved = moved_cameras(held_out)
     for v, name in enumerate(rig.names):
         count = {s: int((st[:, :, v] == s).sum()) for s in ViewStatus}
         in_view = sum(count[s] for s in ViewStatus if s not in (0, ViewStatus.OUT_OF_VIEW))
@@ -458,6 +462,10 @@ def _cameras(poses, rig, consistency, err_px, err_mm, with2d, measured) -> list[
                 "keypoints_excluded_percent": excluded,
                 "reprojection_px_median": _stats(err_px[:, :, v])[0],
                 "reprojection_mm_median": _stats(err_mm[:, :, v])[0],
+                "held_out_px_median": None
+                if not np.isfinite(held_out[v])
+                else round(float(held_out[v]), 1),
+                "moved_since_calibration": bool(moved[v]),
             }
         )
     return rows
@@ -672,8 +680,22 @@ def _md_cameras(r: RunReport) -> list[str]:
                 ("keypoints_excluded_percent", "keypoints excluded (%)"),
                 ("reprojection_px_median", "reproj. error median (px)"),
                 ("reprojection_mm_median", "reproj. error median (mm)"),
+                ("held_out_px_median", "held-out error median (px)"),
             ],
         )
+        moved = [c["camera"] for c in r.cameras if c.get("moved_since_calibration")]
+        md += [
+            "",
+            "Calibration: "
+            + (
+                f"{', '.join(moved)} may have moved since calibration (its held-out error, "
+                "its 2D against the people placed by the other cameras, is over 10 px and 3 "
+                "times the others'): check it with `rmpl calibrate --check`."
+                if moved
+                else "no camera appears to have moved since calibration (held-out errors "
+                "within 10 px or 3 times the others')."
+            ),
+        ]
     return md
 
 
