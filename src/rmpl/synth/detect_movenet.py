@@ -357,14 +357,7 @@ class MoveNetBlazePose(BlazePoseMulti):
                 if person is not None:
                     add(None, person)
         self._frame += 1
-        slots: list[_Person | None] = [None] * self.max_people
-        for slot, person in found:
-            if slot is not None:
-                slots[slot] = person
-        for slot, person in found:
-            if slot is None and None in slots:
-                slots[slots.index(None)] = person
-        self._slots = slots
+        self._assign_slots(found)
 
     def _from_movenet(self, image: np.ndarray, kp: np.ndarray, sc: np.ndarray) -> _Person | None:
         """One MoveNet person (COCO-17 continuous pixels, scores): the landmark network's

@@ -548,6 +548,10 @@ class BlazePoseMulti:
             if not any(self._is_followed(hip, shoulder, q) for _, q in found):
                 add(None, self._landmark(image, centre, side, angle))
         self._frame += 1
+        self._assign_slots(found)
+
+    def _assign_slots(self, found: list[tuple[int | None, _Person]]) -> None:
+        """People followed keep their slot; new ones take the first free slots."""
         slots: list[_Person | None] = [None] * self.max_people
         for slot, person in found:
             if slot is not None:
