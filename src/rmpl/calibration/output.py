@@ -10,14 +10,16 @@ and ``anipose`` (anipose's calibration.toml; both in metres), ``easymocap`` (a f
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rmpl.calibration.calibrate import Calibration
-from rmpl.calibration.report import report_files
 from rmpl.errors import InputError
 from rmpl.io.atomic import atomic_path
 from rmpl.io.calibration import FORMATS, CalibOptions
 from rmpl.io.calibration._write import write_all
 from rmpl.io.calibration.registry import output_format
+
+if TYPE_CHECKING:  # the chain (SciPy, OpenCV) is not imported to list the formats
+    from rmpl.calibration.calibrate import Calibration
 
 __all__ = ["OUTPUT_FORMATS", "write_calibration"]
 
@@ -33,6 +35,8 @@ OUTPUT_FORMATS = {
 
 def write_calibration(cal: Calibration, out: str | Path, fmt: str | None = None) -> list[Path]:
     """Write ``cal`` to ``out`` and its report beside it; returns the files written."""
+    from rmpl.calibration.report import report_files
+
     out = Path(out)
     if cal.fisheye:
         raise InputError(
