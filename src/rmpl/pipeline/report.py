@@ -54,6 +54,8 @@ import numpy as np
 from rmpl.errors import InputError
 from rmpl.io.poses import JointSource, Poses3D, ViewStatus
 from rmpl.pipeline.consistency import (
+    MOVED_PX,
+    MOVED_RATIO,
     Consistency,
     ConsistencyConfig,
     check_views,
@@ -684,16 +686,17 @@ def _md_cameras(r: RunReport) -> list[str]:
             ],
         )
         moved = [c["camera"] for c in r.cameras if c.get("moved_since_calibration")]
+        rule = f"{MOVED_PX:g} px and {MOVED_RATIO:g} times the others'"
         md += [
             "",
             "Calibration: "
             + (
                 f"{', '.join(moved)} may have moved since calibration (its held-out error, "
-                "its 2D against the people placed by the other cameras, is over 10 px and 3 "
-                "times the others'): check it with `rmpl calibrate --check`."
+                f"its 2D against the people placed by the other cameras, is over {rule}): "
+                "check it with `rmpl calibrate --check`."
                 if moved
-                else "no camera appears to have moved since calibration (held-out errors "
-                "within 10 px or 3 times the others')."
+                else "no camera appears to have moved since calibration (no held-out error "
+                f"over {rule})."
             ),
         ]
     return md
