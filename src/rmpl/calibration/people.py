@@ -63,6 +63,7 @@ PNP_PX = 12.0  # the start's two cameras are a few degrees off: PnP inliers are 
 MIN_COMMON = 60  # joint correspondences a pair of tracks needs
 HYPOTHESIS_POINTS = 1000  # joints of a track pair a hypothesis is fitted on
 SUPPORT_PX = 10.0  # median Sampson distance of a track pair of one person
+SUPPORT_RATIO = 2.0  # ... or this many times that of the pair that proposed the matrix
 J17 = 17
 
 
@@ -155,7 +156,7 @@ def _pair_matrix(tracks_a, tracks_b, focal: float):
         if E is None or E.shape != (3, 3):
             continue
         E = E[:3]
-        sup = _support(E, cands, focal)
+        sup = _support(E, cands, focal, float(np.median(_sampson(E, xa, xb))) * focal)
         score = sum(len(c[2]) for c in sup)
         if score > best[0]:
             best = (score, E, sup)
@@ -163,6 +164,7 @@ def _pair_matrix(tracks_a, tracks_b, focal: float):
     if best[1] is None:
         return 0, None, [], together
     E, sup = best[1], best[2]
+    n = 0
     for _ in range(2):  # refit on every supporter, then take the supporters again
         xa = np.concatenate([c[2] for c in sup])
         xb = np.concatenate([c[3] for c in sup])
@@ -170,13 +172,18 @@ def _pair_matrix(tracks_a, tracks_b, focal: float):
         if E2 is None or E2.shape != (3, 3):
             break
         E, n = E2, int(mask.sum())
-        sup = _support(E, cands, focal) or sup
+        noise = min(float(np.median(_sampson(E, c[2], c[3]))) for c in sup) * focal
+        sup = _support(E, cands, focal, noise) or sup
     matches = [(i, j, float((_sampson(E, xa, xb) < thr).mean())) for i, j, xa, xb in sup]
     return n, E, matches, together
 
 
-def _support(E: np.ndarray, cands: list, focal: float) -> list:
-    return [c for c in cands if np.median(_sampson(E, c[2], c[3])) * focal < SUPPORT_PX]
+def _support(E: np.ndarray, cands: list, focal: float, noise: float = 0.0) -> list:
+    """The track pairs whose median Sampson distance (pixels) is under :data:`SUPPORT_PX`,
+    or under :data:`SUPPORT_RATIO` times ``noise`` (the hypothesis' own pair's median: a
+    detector whose joints scatter more gets a wider gate, in proportion)."""
+    limit = max(SUPPORT_PX, SUPPORT_RATIO * noise)
+    return [c for c in cands if np.median(_sampson(E, c[2], c[3])) * focal < limit]
 
 
 def _people_matches(tracks, focal: np.ndarray, with_pairs: bool = False):
@@ -543,9 +550,13 @@ def _scale(X, heights, seen, centres, cov, rig, height, camera_distance, source)
         float(rel),
         (
             f"the adult body prior ({ADULT_STATURE:.2f} +- "
-            f"{ADULT_STATURE_SD:.2f} m) over {int(ok.sum())} people"
+            f"{ADULT_STATURE_SD:.2f} m) over {_count(int(ok.sum()), 'person', 'people')}"
         ),
     )
+
+
+def _count(n: int, one: str, many: str) -> str:
+    return f"{n} {one if n == 1 else many}"
 
 
 def _up_and_floor(X: np.ndarray):
@@ -612,6 +623,7 @@ def calibrate_from_people(
         InputError: one camera, a view without people, intrinsics that do not fit the
             images, or people too few to place every camera.
     """
+    from rmpl.calibration.people_assoc import MAX_COST, reassociate
     from rmpl.calibration.people_bundle import adjust, centre_covariance
 
     keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
@@ -630,6 +642,19 @@ def calibrate_from_people(
     prob, X0, index = _problem(obs, X, focal, ids)
     L0 = _start_lengths(X)
     res = adjust(prob, R, t, X0, L0, fixed=a, gauge_cam=b)
+    for max_cost in MAX_COST:  # who is who again, through the cameras found
+        rig_now = Rig(tuple(Camera(c.K, res.R[v], res.t[v], c.dist, c.size, c.name)
+                            for v, c in enumerate(rig0)))  # fmt: skip
+        obs, ids, groups = reassociate(keypoints, scores, rig_now, max_cost, MIN_SCORE,
+                                       _normalised)  # fmt: skip
+        frames = _frames(obs, max_frames)
+        if not len(frames) or not groups:
+            raise InputError(source, "keypoints", "frames where two cameras see one person")
+        obs, ids = obs[frames], ids[frames]
+        X = triangulate_normalised(np.moveaxis(obs, 2, 3), res.R, res.t, np.ones(len(rig0), bool))
+        prob, X0, index = _problem(obs, X, focal, ids)
+        L0 = _start_lengths(X)
+        res = adjust(prob, res.R, res.t, X0, L0, fixed=a, gauge_cam=b)
     Xb = np.full(X.shape, np.nan)
     Xb[index >= 0] = res.points
     cov = centre_covariance(res, len(L0))
@@ -688,11 +713,13 @@ def _initial(tracks, rig0: Rig, focal: np.ndarray, start: Rig | None, source):
 
 
 def _people_table(groups, rig0: Rig, per_person: np.ndarray, heights: np.ndarray, s: float):
-    """The report's people: their views, observations and stature."""
+    """The report's people (:func:`rmpl.calibration.people_assoc.reassociate`'s persons):
+    the frames each camera sees them in, their observations kept and stature."""
     return [
         {
             "person": g,
-            "views": {rig0[v].name: qs for v, qs in m.items()},
+            "frames_per_camera": m["views"],
+            "frames": m["frames"],
             "observations": int(per_person[g]),
             "stature_m": None if not np.isfinite(heights[g]) else round(float(heights[g] * s), 3),
         }

@@ -66,7 +66,8 @@ def report_markdown(doc: dict) -> str:
     ]
     for p in doc["people"]:
         lines.append(
-            f"- person {p['person']}: tracks {p['views']}, {p['observations']} "
+            f"- person {p['person']}: {p['frames']} frames, per camera {p['frames_per_camera']}, "
+            f"{p['observations']} "
             f"observations, stature {p['stature_m']} m"
         )
     if doc["moved"]:
