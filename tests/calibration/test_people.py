@@ -143,3 +143,43 @@ def test_run_cli_writes_calibration_and_report(tmp_path):
     args.camera_distance = ["cam0", "nope", "2.0"]
     with pytest.raises(InputError, match="--camera-distance"):
         run_cli(args)
+
+
+def test_cameras_not_started_together_calibrate_with_rmpl_sync_offsets(tmp_path):
+    from rmpl.calibration.sync import Sync, write_sync
+    from rmpl.io.calibration import load_rig, save_rig
+    from rmpl.io.keypoints import Keypoints2D, save_keypoints
+
+    rig = ring_rig(3, rng=2, distortion=True)
+    X = moving_people(np.arange(64) / 20, (1.75,), rng=3)
+    kp, sc = observe(X, rig, noise=1.0, rng=2)
+    late = 4  # cam2 started 4 frames late: its frame t is everyone's t + 4
+    kp = np.concatenate([kp[:60, :2], kp[late : 60 + late, 2:]], 1)
+    sc = np.concatenate([sc[:60, :2], sc[late : 60 + late, 2:]], 1)
+    save_rig(_garbage(rig), tmp_path / "intrinsics.toml")
+    save_keypoints(Keypoints2D(kp, sc, "coco17", rig.names, None, 20.0), tmp_path / "kp.npz")
+    write_sync(Sync(rig.names, np.full(3, 20.0), np.array([0, 0, -late / 20]), np.ones(3)),
+               tmp_path / "sync.json")  # fmt: skip
+    args = argparse.Namespace(
+        from_people=True, refine=None, calib=str(tmp_path / "intrinsics.toml"),
+        keypoints=[str(tmp_path / "kp.npz")], videos=None, height=None,
+        camera_distance=None, max_frames=40, format=None, sync=None,
+        out=str(tmp_path / "out" / "calib.toml"),
+    )  # fmt: skip
+    with pytest.raises(InputError, match="view cam2.*--sync"):
+        run_cli(args)  # as recorded: cam2 disagrees with the others
+    assert not (tmp_path / "out" / "calib.toml").exists()
+    args.sync = str(tmp_path / "sync.json")
+    assert run_cli(args) == 0
+    assert _errors(load_rig(args.out), rig)[0].max() < 0.3
+    doc = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert doc["sync"]["cameras"]["cam2"]["offset_frames"] == -late
+
+
+def test_a_camera_the_others_disagree_with_is_refused_in_one_line():
+    rig = ring_rig(3, rng=2, distortion=True)
+    X = moving_people(np.arange(70) / 20, (1.75,), rng=3)
+    kp, sc = observe(X, rig, noise=1.0, rng=2)
+    kp = np.concatenate([kp[:60, :2], kp[10:, 2:]], 1)  # cam2 half a second late
+    with pytest.raises(InputError, match="view cam2.*agree with the other cameras"):
+        calibrate_from_people(kp, sc[:60], rig, max_frames=40)

@@ -460,14 +460,11 @@ def _start_lengths(X: np.ndarray) -> np.ndarray:
     G = X.shape[1]
     out = np.zeros(G * len(BONES))
     for k, (p, q) in enumerate(BONES):
-        d = np.linalg.norm(X[:, :, p] - X[:, :, q], axis=-1)  # (T, G)
-        with np.errstate(all="ignore"):
-            med = (
-                np.nanmedian(np.where(np.isfinite(d), d, np.nan), 0)
-                if np.isfinite(d).any()
-                else np.zeros(G)
-            )
-        out[np.arange(G) * len(BONES) + k] = np.nan_to_num(med, nan=0.3)
+        d = np.linalg.norm(X[:, :, p] - X[:, :, q], axis=-1)  # (T, G), NaN where unseen
+        med = np.full(G, 0.3)  # a bone never seen starts at 30 cm
+        has = np.isfinite(d).any(0)
+        med[has] = np.nanmedian(d[:, has], 0)
+        out[np.arange(G) * len(BONES) + k] = med
     return out
 
 
@@ -543,14 +540,20 @@ def _scale(X, heights, seen, centres, cov, rig, height, camera_distance, source)
             PROPORTION_SD,
             f"--height {float(height):.3f} m (person {g}, seen most)",
         )
-    rel = np.hypot(ADULT_STATURE_SD / ADULT_STATURE, PROPORTION_SD) / np.sqrt(ok.sum())
-    factor = float(np.exp(np.mean(np.log(ADULT_STATURE / heights[ok]))))
+    # Each person weighs by its observations: a short fragment (often of someone also
+    # seen longer) says little; the people count as their effective number (Kish).
+    w = np.asarray(seen, float)[ok]
+    w = w / w.sum() if w.sum() > 0 else np.full(len(w), 1 / len(w))
+    n_eff = 1.0 / float((w**2).sum())
+    rel = np.hypot(ADULT_STATURE_SD / ADULT_STATURE, PROPORTION_SD) / np.sqrt(n_eff)
+    factor = float(np.exp((w * np.log(ADULT_STATURE / heights[ok])).sum()))
     return (
         factor,
         float(rel),
         (
             f"the adult body prior ({ADULT_STATURE:.2f} +- "
-            f"{ADULT_STATURE_SD:.2f} m) over {_count(int(ok.sum()), 'person', 'people')}"
+            f"{ADULT_STATURE_SD:.2f} m) over {_count(int(ok.sum()), 'person', 'people')}, "
+            f"weighed by their observations (as {n_eff:.1f} independent)"
         ),
     )
 
@@ -655,6 +658,7 @@ def calibrate_from_people(
         prob, X0, index = _problem(obs, X, focal, ids)
         L0 = _start_lengths(X)
         res = adjust(prob, res.R, res.t, X0, L0, fixed=a, gauge_cam=b)
+    _check_kept(res, prob, rig0, source)
     Xb = np.full(X.shape, np.nan)
     Xb[index >= 0] = res.points
     cov = centre_covariance(res, len(L0))
@@ -669,6 +673,22 @@ def calibrate_from_people(
     rig = Rig(tuple(Camera(c.K, Rn[v], tn[v], c.dist, c.size, c.name) for v, c in enumerate(rig0)))
     people = _people_table(groups, rig0, per_person, heights, s)
     return _result(rig, res, prob, cov, s, (what, sd), people, frames, floor, start)
+
+
+def _check_kept(res, prob, rig0: Rig, source) -> None:
+    """Every camera keeps :data:`MIN_COMMON` observations that agree with the others: a
+    camera the adjustment could not fit is refused, never written."""
+    for v, cam in enumerate(rig0):
+        mine = prob.cam == v
+        kept = int((res.kept & mine).sum())
+        if kept < MIN_COMMON:
+            raise InputError(
+                source,
+                f"view {cam.name}",
+                f"at least {MIN_COMMON} joints that agree with the other cameras (cameras "
+                "started together or given --sync, intrinsics of these images)",
+                f"{kept} of {int(mine.sum())}",
+            )
 
 
 def _result(rig, res, prob, cov, s, scale, people, frames, floor, start) -> PeopleCalibration:

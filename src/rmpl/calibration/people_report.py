@@ -23,7 +23,7 @@ __all__ = ["report_dict", "report_markdown", "run_cli"]
 log = logging.getLogger(__name__)
 
 
-def report_dict(cal, mode: str) -> dict:
+def report_dict(cal, mode: str, sync: dict | None = None) -> dict:
     return {
         "format": "rmpl.calibration-report",
         "version": 1,
@@ -43,7 +43,15 @@ def report_dict(cal, mode: str) -> dict:
         "frames_used": [int(f) for f in cal.frames_used],
         "observations": {"kept": cal.observations[0], "total": cal.observations[1]},
         "moved": cal.moved,
+        "sync": sync,
     }
+
+
+def _sync_line(sync: dict | None) -> str:
+    if not sync:
+        return "Synchronisation: none (the cameras taken as started together)."
+    offsets = {n: c["offset_frames"] for n, c in sync["cameras"].items()}
+    return f"Synchronisation: {sync.get('source')}, offsets in frames {offsets}."
 
 
 def report_markdown(doc: dict) -> str:
@@ -61,6 +69,7 @@ def report_markdown(doc: dict) -> str:
         "",
         f"Scale: {sc['source']}, +-{100 * sc['relative_sd']:.1f}%.",
         f"Floor: {doc['floor']}.",
+        _sync_line(doc.get("sync")),
         f"People: {len(doc['people'])}; frames used: {len(doc['frames_used'])}; "
         f"observations kept: {obs['kept']} of {obs['total']}.",
     ]
@@ -98,7 +107,16 @@ def _load(args: argparse.Namespace):
         skeleton=getattr(args, "skeleton", None),
     )
     cache = Path(args.out).with_suffix(".keypoints2d.npz") if spec.videos else None
-    return load_inputs(spec, cache)
+    inputs = load_inputs(spec, cache)
+    sync = getattr(args, "sync", None)
+    if sync is not None:
+        from rmpl.calibration.sync import synced_inputs
+
+        if sync == "auto":
+            raise InputError(None, "--sync", "a sync.json from rmpl sync (auto needs a "
+                             "calibration's extrinsics)", sync)  # fmt: skip
+        inputs = synced_inputs(inputs, sync, args.calib)
+    return inputs
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -132,7 +150,7 @@ def run_cli(args: argparse.Namespace) -> int:
     )
     out = Path(args.out)
     save_rig(cal.rig, out, getattr(args, "format", None))
-    doc = report_dict(cal, "refine" if refine else "from people")
+    doc = report_dict(cal, "refine" if refine else "from people", getattr(inputs, "sync", None))
     md, js = _report_paths(out)
     with atomic_path(js) as tmp:
         tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")

@@ -56,6 +56,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     people.add_argument("--camera-distance", nargs=3, metavar=("CAM_A", "CAM_B", "METRES"),
                         help="a known distance between two cameras")  # fmt: skip
     people.add_argument("--max-frames", type=int, metavar="N", help="frames to use at most")
+    people.add_argument("--sync", metavar="SYNC_JSON",
+                        help="cameras not started together: rmpl sync's offsets")  # fmt: skip
     parser.set_defaults(run=run)
 
 
