@@ -143,8 +143,6 @@ def _left_jacobian(rvec: np.ndarray) -> np.ndarray:
 def _jacobian(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge):
     """The analytic Jacobian of :func:`_residuals`, a CSR matrix of the same shape as
     :func:`_sparsity`'s pattern (and nonzero only inside it)."""
-    from scipy.sparse import csr_matrix
-
     R, t, lengths, X = _unpack(x, V, free, fixed[0], fixed[1], num_lengths)
     F = len(free)
     nc, off = 6 * F, 6 * F + num_lengths
@@ -180,10 +178,18 @@ def _jacobian(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge):
         (br, nc + prob.bone_length[:, None], np.full((B, 1, 1), -PIXEL_SIGMA / BONE_SIGMA)),
     ]
     blocks += _gauge_blocks(R, t, col, Jl, gauge, 2 * M + B)
+    return _assemble(blocks, (2 * M + B + 1, off + 3 * len(X)))
+
+
+def _assemble(blocks, shape):
+    """A CSR matrix from blocks, each (rows (K, r), cols (K, c), values (K, r, c)): block
+    k puts values[k] at rows[k] x cols[k]."""
+    from scipy.sparse import csr_matrix
+
     r = np.concatenate([np.broadcast_to(rw[:, :, None], v.shape).ravel() for rw, _, v in blocks])
-    cc = np.concatenate([np.broadcast_to(cl[:, None, :], v.shape).ravel() for _, cl, v in blocks])
+    c = np.concatenate([np.broadcast_to(cl[:, None, :], v.shape).ravel() for _, cl, v in blocks])
     vals = np.concatenate([v.ravel() for _, _, v in blocks])
-    return csr_matrix((vals, (r, cc)), shape=(2 * M + B + 1, off + 3 * len(X)))
+    return csr_matrix((vals, (r, c)), shape=shape)
 
 
 def _gauge_blocks(R, t, col, Jl, gauge, row):
