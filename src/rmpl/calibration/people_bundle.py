@@ -21,6 +21,7 @@ Shape glossary: ``M`` observations, ``N`` 3D points, ``V`` cameras, ``G`` people
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,8 @@ import numpy as np
 from rmpl.geometry.camera import rodrigues
 
 __all__ = ["BONES", "BundleProblem", "BundleResult", "adjust", "centre_covariance"]
+
+log = logging.getLogger(__name__)
 
 #: COCO-17 bones held constant per person: (joint a, joint b).
 BONES = (
@@ -295,6 +298,10 @@ def _adjust(prob, R, t, points, lengths, pair, rounds, max_nfev, analytic) -> Bu
             args=(prob, mask, V, free, fixed_pose, L, gauge),
         )
         x = res.x
+        log.debug(
+            "round %s: %d observations, %d evaluations, status %d, cost %.6g",
+            threshold, int(mask.sum()), res.nfev, res.status, res.cost,
+        )  # fmt: skip
         errors = _errors(x, prob, V, free, fixed_pose, L)
         if threshold is None:
             break
