@@ -163,3 +163,16 @@ def test_bad_members_takes_each_tracks_median():
     bad = pb._bad_members(prob, errors, 5.0)
     assert bad.tolist() == [False] * 3 + [True] * 4
     assert not pb._bad_members(prob, errors, 20.0).any()
+
+
+def test_one_blas_thread_limits_blas_inside_only():
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+
+    def blas_threads():
+        info = threadpoolctl.threadpool_info()
+        return [i["num_threads"] for i in info if i["user_api"] == "blas"]
+
+    before = blas_threads()
+    with pb.one_blas_thread():
+        assert all(n == 1 for n in blas_threads())
+    assert blas_threads() == before

@@ -260,11 +260,14 @@ def _subset(obs: Observations, keep: np.ndarray) -> Observations:
 def _solve(prob: _Problem, x0, K0, dist0, analytic: bool = True):
     """The least-squares solution from ``x0``: with the analytic Jacobian, or
     (``analytic=False``) SciPy's finite differences over the sparsity pattern."""
+    from rmpl.calibration.people_bundle import one_blas_thread
+
     jac = {"jac": prob.jacobian} if analytic else {"jac_sparsity": prob.sparsity()[0]}
-    return least_squares(
-        prob.residuals, x0, **jac, loss="soft_l1", f_scale=1.0, x_scale="jac",
-        method="trf", args=(K0, dist0), max_nfev=100, xtol=1e-6, ftol=1e-6,
-    )  # fmt: skip
+    with one_blas_thread():
+        return least_squares(
+            prob.residuals, x0, **jac, loss="soft_l1", f_scale=1.0, x_scale="jac",
+            method="trf", args=(K0, dist0), max_nfev=100, xtol=1e-6, ftol=1e-6,
+        )  # fmt: skip
 
 
 def adjust(

@@ -21,6 +21,7 @@ Shape glossary: ``M`` observations, ``N`` 3D points, ``V`` cameras, ``G`` people
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass
 
@@ -28,7 +29,14 @@ import numpy as np
 
 from rmpl.geometry.camera import rodrigues
 
-__all__ = ["BONES", "BundleProblem", "BundleResult", "adjust", "centre_covariance"]
+__all__ = [
+    "BONES",
+    "BundleProblem",
+    "BundleResult",
+    "adjust",
+    "centre_covariance",
+    "one_blas_thread",
+]
 
 log = logging.getLogger(__name__)
 
@@ -264,8 +272,6 @@ def adjust(
 def _adjust(prob, R, t, points, lengths, pair, rounds, max_nfev, analytic) -> BundleResult:
     """:func:`adjust` with the analytic Jacobian or (``analytic=False``) SciPy's finite
     differences over the sparsity pattern."""
-    from scipy.optimize import least_squares
-
     from rmpl.geometry.camera import rotation_to_rodrigues
 
     fixed, gauge_cam = pair
@@ -277,14 +283,41 @@ def _adjust(prob, R, t, points, lengths, pair, rounds, max_nfev, analytic) -> Bu
     x = np.concatenate(
         [np.c_[rotation_to_rodrigues(R[free]), t[free]].ravel(), lengths, points.ravel()]
     )
-    mask = np.ones(len(prob.cam), bool)
     L = len(lengths)
-    res = None
+    with one_blas_thread():
+        res, x, mask, errors = _rounds(prob, x, V, free, fixed_pose, L, gauge, rounds, max_nfev,
+                                       analytic)  # fmt: skip
+    R1, t1, lengths1, X1 = _unpack(x, V, free, *fixed_pose, L)
+    r = res.fun[: 2 * int(mask.sum())]
+    sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
+    return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+
+
+def one_blas_thread():
+    """A context in which BLAS runs on one thread (when threadpoolctl is installed).
+
+    The solver's linear algebra is sparse products and dot products of vectors of some
+    10^4-10^5 numbers, too small to gain from threads; on a busy machine (or beside
+    torch's threads) OpenBLAS's threads waiting for a core made the adjustment some ten
+    times slower."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(1, user_api="blas")
+
+
+def _rounds(prob, x, V, free, fixed_pose, L, gauge, rounds, max_nfev, analytic):
+    """The solves of :func:`adjust`, the outliers dropped between them."""
+    from scipy.optimize import least_squares
+
+    mask = np.ones(len(prob.cam), bool)
     for threshold in (*rounds, None):
         if analytic:
             jac = {"jac": _jacobian}
         else:
-            jac = {"jac_sparsity": _sparsity(prob, mask, V, free, L, len(points))}
+            N = (len(x) - 6 * len(free) - L) // 3
+            jac = {"jac_sparsity": _sparsity(prob, mask, V, free, L, N)}
         res = least_squares(
             _residuals,
             x,
@@ -310,10 +343,7 @@ def _adjust(prob, R, t, points, lengths, pair, rounds, max_nfev, analytic) -> Bu
         if (keep == mask).all():
             continue
         mask = keep
-    R1, t1, lengths1, X1 = _unpack(x, V, free, *fixed_pose, L)
-    r = res.fun[: 2 * int(mask.sum())]
-    sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
-    return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+    return res, x, mask, errors
 
 
 def _bad_members(prob: BundleProblem, errors: np.ndarray, limit: float) -> np.ndarray:
