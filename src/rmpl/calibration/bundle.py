@@ -1,10 +1,12 @@
 """One bundle adjustment of every camera and every board pose.
 
 ``scipy.optimize.least_squares`` (trust-region reflective) minimises the reprojection
-error of every board corner seen, with a sparse Jacobian (``jac_sparsity``: a corner's two
-residuals depend only on its camera and its board pose) and a robust loss (``soft_l1``,
-scale 1 px). Unknowns: each camera's pose (the reference camera's is fixed: it sets the
-frame), optionally its lens (fx, fy, cx, cy, k1, k2, p1, p2, k3), and each board pose.
+error of every board corner seen, with an analytic sparse Jacobian (``_Problem.jacobian``:
+a corner's two residuals depend only on its camera and its board pose; rotations through
+the left Jacobian of SO(3), the lens through the derivatives of the distortion polynomial)
+and a robust loss (``soft_l1``, scale 1 px). Unknowns: each camera's pose (the reference
+camera's is fixed: it sets the frame), optionally its lens (fx, fy, cx, cy, k1, k2, p1, p2,
+k3), and each board pose.
 A lens that is adjusted keeps its own calibration as a Gaussian prior (OpenCV's standard
 deviations of each parameter), so views that disagree across cameras (a board moving
 between unsynchronised frames) cannot drag it where its own images say it is not. The
@@ -136,6 +138,53 @@ class _Problem:
         )
         return np.concatenate([res, ((lens - self.prior[0]) / self.prior[1]).ravel()])
 
+    def starts(self) -> np.ndarray:
+        """Each camera's first column (V,) and the first board column."""
+        widths = [self.ncam - (6 if v == self.ref else 0) for v in range(self.V)]
+        return np.r_[0, np.cumsum(widths)]
+
+    def jacobian(self, x, K0, dist0) -> sp.csr_matrix:
+        """The analytic Jacobian of :meth:`residuals` (CSR, inside :meth:`sparsity`'s
+        pattern); a rotation's derivative through the left Jacobian of SO(3)."""
+        from rmpl.calibration.people_bundle import _assemble, _left_jacobian, _skew
+
+        o, n = self.obs, len(self.obs.cam)
+        K, dist, rc, tc, boards = self.unpack(x, K0, dist0)
+        Rb, Rcm = rodrigues_batch(boards[:, :3]), rodrigues_batch(rc)
+        Pw = np.einsum("nij,nj->ni", Rb[o.pose], o.points)  # board point turned, (n, 3)
+        Y = np.einsum("nij,nj->ni", Rcm[o.cam], Pw + boards[o.pose, 3:])
+        Xc = Y + tc[o.cam]
+        xn = Xc[:, :2] / Xc[:, 2:3]
+        dxy, ddist, xd = _distort_jacobian(xn, np.stack(dist)[o.cam])
+        Ks = np.stack(K)[o.cam]
+        f = np.c_[Ks[:, 0, 0], Ks[:, 1, 1]]
+        eye = np.broadcast_to(np.eye(2), (n, 2, 2))
+        dproj = np.concatenate([eye, -xn[:, :, None]], -1) / Xc[:, 2, None, None]  # dxn/dXc
+        G = (f[:, :, None] * dxy) @ dproj  # (n, 2, 3) d pixel / d Xc
+        rows = 2 * np.arange(n)[:, None] + np.arange(2)  # (n, 2)
+        starts = self.starts()
+        board0 = starts[-1]
+        GR = G @ Rcm[o.cam]
+        dboard = np.concatenate([GR @ (-_skew(Pw) @ _left_jacobian(boards[:, :3])[o.pose]), GR], -1)
+        blocks = [(rows, board0 + 6 * o.pose[:, None] + np.arange(6), dboard)]
+        has = o.cam != self.ref
+        dpose = np.concatenate([G @ (-_skew(Y) @ _left_jacobian(rc)[o.cam]), G], -1)
+        blocks.append((rows[has], starts[o.cam[has]][:, None] + np.arange(6), dpose[has]))
+        nrows = 2 * n
+        if self.free:
+            dlens = np.zeros((n, 2, 9))
+            dlens[:, 0, 0], dlens[:, 1, 1] = xd[:, 0], xd[:, 1]
+            dlens[:, 0, 2] = dlens[:, 1, 3] = 1.0
+            dlens[:, :, 4:] = f[:, :, None] * ddist
+            first = starts[:-1] + np.where(np.arange(self.V) == self.ref, 0, 6)
+            blocks.append((rows, first[o.cam][:, None] + np.arange(9), dlens))
+            if self.prior is not None:
+                prior_rows = (nrows + np.arange(9 * self.V))[:, None]  # one entry each
+                prior_cols = (first[:, None] + np.arange(9)).reshape(-1, 1)
+                blocks.append((prior_rows, prior_cols, (1 / self.prior[1]).reshape(-1, 1, 1)))
+                nrows += 9 * self.V
+        return _assemble(blocks, (nrows, board0 + 6 * self.P))
+
     def sparsity(self) -> sp.csr_matrix:
         o, n = self.obs, len(self.obs.cam)
         starts, col = [], 0
@@ -163,6 +212,35 @@ class _Problem:
         return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=shape), board0
 
 
+def _distort_jacobian(xy: np.ndarray, dist: np.ndarray):
+    """Of :func:`rmpl.geometry.camera.distort` at ``xy`` (n, 2) with ``dist`` (n, 5): the
+    derivatives by (x, y), (n, 2, 2), and by (k1, k2, p1, p2, k3), (n, 2, 5); and the
+    distorted coordinates (n, 2)."""
+    k1, k2, p1, p2, k3 = dist.T
+    x, y = xy.T
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
+    cross = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
+    dxy = np.stack(
+        [
+            np.stack([radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x, cross], -1),
+            np.stack([cross, radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x], -1),
+        ],
+        -2,
+    )
+    ddist = np.stack(
+        [
+            np.stack([x * r2, x * r2**2, 2 * x * y, r2 + 2 * x * x, x * r2**3], -1),
+            np.stack([y * r2, y * r2**2, r2 + 2 * y * y, 2 * x * y, y * r2**3], -1),
+        ],
+        -2,
+    )
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    return dxy, ddist, np.c_[xd, yd]
+
+
 def _view_rms(res: np.ndarray, obs: Observations) -> dict[tuple[int, int], float]:
     sq = res[: 2 * len(obs.cam)].reshape(-1, 2) ** 2
     out: dict[tuple[int, int], float] = {}
@@ -179,12 +257,17 @@ def _subset(obs: Observations, keep: np.ndarray) -> Observations:
     )
 
 
-def _solve(prob: _Problem, x0, K0, dist0):
-    S, _ = prob.sparsity()
-    return least_squares(
-        prob.residuals, x0, jac_sparsity=S, loss="soft_l1", f_scale=1.0, x_scale="jac",
-        method="trf", args=(K0, dist0), max_nfev=100, xtol=1e-6, ftol=1e-6,
-    )  # fmt: skip
+def _solve(prob: _Problem, x0, K0, dist0, analytic: bool = True):
+    """The least-squares solution from ``x0``: with the analytic Jacobian, or
+    (``analytic=False``) SciPy's finite differences over the sparsity pattern."""
+    from rmpl.calibration.people_bundle import one_blas_thread
+
+    jac = {"jac": prob.jacobian} if analytic else {"jac_sparsity": prob.sparsity()[0]}
+    with one_blas_thread():
+        return least_squares(
+            prob.residuals, x0, **jac, loss="soft_l1", f_scale=1.0, x_scale="jac",
+            method="trf", args=(K0, dist0), max_nfev=100, xtol=1e-6, ftol=1e-6,
+        )  # fmt: skip
 
 
 def adjust(

@@ -11,7 +11,8 @@ person's bone lengths (one per bone of :data:`BONES`), each 3D joint (3). Residu
 - the gauge: one camera fixed (its pose is not a parameter) and the distance between it and
   a second camera held at its start value (the scale comes afterwards).
 
-SciPy's ``least_squares`` (trust region, LSMR) gets the Jacobian's sparsity pattern; the
+SciPy's ``least_squares`` (trust region, LSMR) gets the analytic sparse Jacobian
+(:func:`_jacobian`; a rotation's derivative through the left Jacobian of SO(3)); the
 loss is ``soft_l1`` with a scale of :data:`PIXEL_SIGMA`; observations further than a
 threshold that tightens over the rounds (:data:`ROUNDS`) are dropped between rounds.
 
@@ -20,13 +21,24 @@ Shape glossary: ``M`` observations, ``N`` 3D points, ``V`` cameras, ``G`` people
 
 from __future__ import annotations
 
+import contextlib
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from rmpl.geometry.camera import rodrigues
 
-__all__ = ["BONES", "BundleProblem", "BundleResult", "adjust", "centre_covariance"]
+__all__ = [
+    "BONES",
+    "BundleProblem",
+    "BundleResult",
+    "adjust",
+    "centre_covariance",
+    "one_blas_thread",
+]
+
+log = logging.getLogger(__name__)
 
 #: COCO-17 bones held constant per person: (joint a, joint b).
 BONES = (
@@ -107,6 +119,109 @@ def _residuals(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge)
     return np.concatenate([reproj, bone * PIXEL_SIGMA, [g]])
 
 
+def _skew(v: np.ndarray) -> np.ndarray:
+    """[v]_x, shape (*, 3, 3), of vectors (*, 3): ``_skew(a) @ b == cross(a, b)``."""
+    z = np.zeros_like(v[..., 0])
+    return np.stack(
+        [
+            np.stack([z, -v[..., 2], v[..., 1]], -1),
+            np.stack([v[..., 2], z, -v[..., 0]], -1),
+            np.stack([-v[..., 1], v[..., 0], z], -1),
+        ],
+        -2,
+    )
+
+
+def _left_jacobian(rvec: np.ndarray) -> np.ndarray:
+    """The left Jacobian of SO(3), shape (*, 3, 3), at rotation vectors (*, 3):
+    ``rodrigues(r + d) ~ rodrigues(J d) @ rodrigues(r)`` for a small ``d``, so
+    ``d(R X)/dr = -[R X]_x J`` and ``d(R^T t)/dr = R^T [t]_x J``.
+
+    >>> import numpy as np
+    >>> np.allclose(_left_jacobian(np.zeros(3)), np.eye(3))
+    True
+    """
+    r = np.asarray(rvec, dtype=float)
+    theta = np.linalg.norm(r, axis=-1)
+    small = theta < 1e-3  # the series to theta^2: its error (theta^4 / 720) stays < 1e-15
+    th = np.where(small, 1.0, theta)
+    a = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th**2)
+    b = np.where(small, 1 / 6 - theta**2 / 120, (th - np.sin(th)) / th**3)
+    K = _skew(r)
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def _jacobian(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge):
+    """The analytic Jacobian of :func:`_residuals`, a CSR matrix of the same shape as
+    :func:`_sparsity`'s pattern (and nonzero only inside it)."""
+    R, t, lengths, X = _unpack(x, V, free, fixed[0], fixed[1], num_lengths)
+    F = len(free)
+    nc, off = 6 * F, 6 * F + num_lengths
+    col = np.full(V, -1)
+    col[free] = np.arange(F)
+    Jl = np.zeros((V, 3, 3))
+    Jl[free] = _left_jacobian(x[:nc].reshape(-1, 6)[:, :3])
+    c, p = prob.cam[mask], prob.point[mask]
+    M, B = len(c), len(prob.bones)
+    rows2 = np.arange(2 * M).reshape(M, 2)  # the two rows of each observation
+    # reprojection: d(f * Xc[:2] / z)/dXc, (M, 2, 3), then through Xc = R X + t
+    Y = np.einsum("mij,mj->mi", R[c], X[p])
+    Xc = Y + t[c]
+    ok = np.abs(Xc[:, 2]) > 1e-9  # where _residuals clamps z, z is a constant
+    z = np.where(ok, Xc[:, 2], 1e-9)
+    fz = prob.focal[c] / z
+    D = np.zeros((M, 2, 3))
+    D[:, 0, 0] = D[:, 1, 1] = fz
+    D[:, :, 2] = np.where(ok[:, None], -fz[:, None] * Xc[:, :2] / z[:, None], 0.0)
+    blocks = [(rows2, off + 3 * p[:, None] + np.arange(3), D @ R[c])]
+    has = col[c] >= 0
+    dY = -_skew(Y[has]) @ Jl[c[has]]  # (Mf, 3, 3) d(R X)/d(rotation vector)
+    cam_vals = np.concatenate([D[has] @ dY, D[has]], -1)  # (Mf, 2, 6)
+    blocks.append((rows2[has], 6 * col[c[has]][:, None] + np.arange(6), cam_vals))
+    # bones: (|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA
+    d = X[prob.bones[:, 0]] - X[prob.bones[:, 1]]
+    n = np.linalg.norm(d, axis=-1, keepdims=True)
+    u = np.where(n > 0, d / np.where(n > 0, n, 1.0), 0.0) * (PIXEL_SIGMA / BONE_SIGMA)
+    br = (2 * M + np.arange(B))[:, None]
+    blocks += [
+        (br, off + 3 * prob.bones[:, :1] + np.arange(3), u[:, None]),
+        (br, off + 3 * prob.bones[:, 1:] + np.arange(3), -u[:, None]),
+        (br, nc + prob.bone_length[:, None], np.full((B, 1, 1), -PIXEL_SIGMA / BONE_SIGMA)),
+    ]
+    blocks += _gauge_blocks(R, t, col, Jl, gauge, 2 * M + B)
+    return _assemble(blocks, (2 * M + B + 1, off + 3 * len(X)))
+
+
+def _assemble(blocks, shape):
+    """A CSR matrix from blocks, each (rows (K, r), cols (K, c), values (K, r, c)): block
+    k puts values[k] at rows[k] x cols[k]."""
+    from scipy.sparse import csr_matrix
+
+    r = np.concatenate([np.broadcast_to(rw[:, :, None], v.shape).ravel() for rw, _, v in blocks])
+    c = np.concatenate([np.broadcast_to(cl[:, None, :], v.shape).ravel() for _, cl, v in blocks])
+    vals = np.concatenate([v.ravel() for _, _, v in blocks])
+    return csr_matrix((vals, (r, c)), shape=shape)
+
+
+def _gauge_blocks(R, t, col, Jl, gauge, row):
+    """The gauge row's derivative by each free camera of the pair: (rows, cols, values)."""
+    i, j, _ = gauge
+    C = -np.einsum("vji,vj->vi", R, t)  # (V, 3) centres -R^T t
+    diff = C[i] - C[j]
+    dist = float(np.linalg.norm(diff))
+    if i == j or dist == 0.0:
+        return []
+    g = GAUGE_WEIGHT * diff / dist  # d gauge / d C_i; its negative for C_j
+    out = []
+    for v, sign in ((i, 1.0), (j, -1.0)):
+        if col[v] < 0:
+            continue
+        dC = np.c_[-R[v].T @ _skew(t[v]) @ Jl[v], -R[v].T]  # (3, 6) d C / d(r, t)
+        cols = 6 * col[v] + np.arange(6)[None]
+        out.append((np.array([[row]]), cols, sign * (g @ dC)[None, None]))
+    return out
+
+
 def _sparsity(prob: BundleProblem, mask, V, free, num_lengths, num_points):
     from scipy.sparse import coo_matrix
 
@@ -151,10 +266,15 @@ def adjust(
 ) -> BundleResult:
     """Adjust cameras, bone lengths and points; ``fixed`` camera's pose stays, the distance
     from it to ``gauge_cam`` too. Returns the solution after the last round."""
-    from scipy.optimize import least_squares
+    return _adjust(prob, R, t, points, lengths, (fixed, gauge_cam), rounds, max_nfev, True)
 
+
+def _adjust(prob, R, t, points, lengths, pair, rounds, max_nfev, analytic) -> BundleResult:
+    """:func:`adjust` with the analytic Jacobian or (``analytic=False``) SciPy's finite
+    differences over the sparsity pattern."""
     from rmpl.geometry.camera import rotation_to_rodrigues
 
+    fixed, gauge_cam = pair
     V = len(R)
     free = [v for v in range(V) if v != fixed]
     fixed_pose = (R[fixed], t[fixed])
@@ -163,15 +283,45 @@ def adjust(
     x = np.concatenate(
         [np.c_[rotation_to_rodrigues(R[free]), t[free]].ravel(), lengths, points.ravel()]
     )
-    mask = np.ones(len(prob.cam), bool)
     L = len(lengths)
-    res = None
+    with one_blas_thread():
+        res, x, mask, errors = _rounds(prob, x, V, free, fixed_pose, L, gauge, rounds, max_nfev,
+                                       analytic)  # fmt: skip
+    R1, t1, lengths1, X1 = _unpack(x, V, free, *fixed_pose, L)
+    r = res.fun[: 2 * int(mask.sum())]
+    sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
+    return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+
+
+def one_blas_thread():
+    """A context in which BLAS runs on one thread (when threadpoolctl is installed).
+
+    The solver's linear algebra is sparse products and dot products of vectors of some
+    10^4-10^5 numbers, too small to gain from threads; on a busy machine (or beside
+    torch's threads) OpenBLAS's threads waiting for a core made the adjustment some ten
+    times slower."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(1, user_api="blas")
+
+
+def _rounds(prob, x, V, free, fixed_pose, L, gauge, rounds, max_nfev, analytic):
+    """The solves of :func:`adjust`, the outliers dropped between them."""
+    from scipy.optimize import least_squares
+
+    mask = np.ones(len(prob.cam), bool)
     for threshold in (*rounds, None):
-        S = _sparsity(prob, mask, V, free, L, len(points))
+        if analytic:
+            jac = {"jac": _jacobian}
+        else:
+            N = (len(x) - 6 * len(free) - L) // 3
+            jac = {"jac_sparsity": _sparsity(prob, mask, V, free, L, N)}
         res = least_squares(
             _residuals,
             x,
-            jac_sparsity=S,
+            **jac,
             loss="soft_l1",
             f_scale=PIXEL_SIGMA,
             x_scale="jac",
@@ -181,6 +331,10 @@ def adjust(
             args=(prob, mask, V, free, fixed_pose, L, gauge),
         )
         x = res.x
+        log.debug(
+            "round %s: %d observations, %d evaluations, status %d, cost %.6g",
+            threshold, int(mask.sum()), res.nfev, res.status, res.cost,
+        )  # fmt: skip
         errors = _errors(x, prob, V, free, fixed_pose, L)
         if threshold is None:
             break
@@ -189,10 +343,7 @@ def adjust(
         if (keep == mask).all():
             continue
         mask = keep
-    R1, t1, lengths1, X1 = _unpack(x, V, free, *fixed_pose, L)
-    r = res.fun[: 2 * int(mask.sum())]
-    sigma = float(np.sqrt(np.mean(r**2))) if len(r) else 1.0
-    return BundleResult(R1, t1, X1, lengths1, mask, errors, res.jac, free, sigma)
+    return res, x, mask, errors
 
 
 def _bad_members(prob: BundleProblem, errors: np.ndarray, limit: float) -> np.ndarray:
@@ -200,8 +351,11 @@ def _bad_members(prob: BundleProblem, errors: np.ndarray, limit: float) -> np.nd
     given to the wrong person goes whole, not only its worst joints."""
     if prob.member is None:
         return np.zeros(len(errors), bool)
-    ids, inv = np.unique(prob.member, return_inverse=True)
-    med = np.array([np.median(errors[inv == k]) for k in range(len(ids))])
+    _, inv = np.unique(prob.member, return_inverse=True)
+    counts = np.bincount(inv)
+    first = np.r_[0, np.cumsum(counts)[:-1]]
+    e = errors[np.lexsort((errors, inv))]  # each track's errors together, ascending
+    med = (e[first + (counts - 1) // 2] + e[first + counts // 2]) / 2
     return med[inv] > limit
 
 
