@@ -183,3 +183,28 @@ def test_a_camera_the_others_disagree_with_is_refused_in_one_line():
     kp = np.concatenate([kp[:60, :2], kp[10:, 2:]], 1)  # cam2 half a second late
     with pytest.raises(InputError, match="view cam2.*agree with the other cameras"):
         calibrate_from_people(kp, sc[:60], rig, max_frames=40)
+
+
+def test_an_unreliable_camera_is_written_warned_and_exits_3(tmp_path, monkeypatch):
+    import rmpl.calibration.people as people
+    from rmpl.io.calibration import save_rig
+    from rmpl.io.keypoints import Keypoints2D, save_keypoints
+
+    rig, kp, sc = _scene()
+    save_rig(_garbage(rig), tmp_path / "intrinsics.toml")
+    save_keypoints(Keypoints2D(kp, sc, "coco17", rig.names, None, 20.0), tmp_path / "kp.npz")
+    args = argparse.Namespace(
+        from_people=True, refine=None, calib=str(tmp_path / "intrinsics.toml"),
+        keypoints=[str(tmp_path / "kp.npz")], videos=None, height=None, camera_distance=None,
+        max_frames=30, format=None, sync=None, out=str(tmp_path / "calib.toml"),
+    )  # fmt: skip
+    assert run_cli(args) == 0  # well placed: every centre within 5% of its distance
+    doc = json.loads((tmp_path / "calibration.json").read_text())
+    rel = [c["centre_sd_of_distance"] for c in doc["cameras"]]
+    assert max(rel) < people.UNRELIABLE_SD and doc["warnings"] == []
+    monkeypatch.setattr(people, "UNRELIABLE_SD", min(r for r in rel if r > 0) / 2)
+    assert run_cli(args) == 3
+    doc = json.loads((tmp_path / "calibration.json").read_text())
+    assert len(doc["warnings"]) == sum(r > 0 for r in rel)  # the gauge camera is exact
+    assert "WARNING: camera" in (tmp_path / "calibration.md").read_text()
+    assert (tmp_path / "calib.toml").is_file()

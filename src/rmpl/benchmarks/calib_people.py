@@ -121,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
     out = compare(cal.rig, truth)
     out |= {"rms_px": [round(float(r), 2) for r in cal.rms], "scale_source": cal.scale_source,
             "scale_sd": round(cal.scale_sd, 4), "people": len(cal.people),
-            "frames": len(cal.frames_used), "seconds": round(time.time() - t0)}  # fmt: skip
+            "frames": len(cal.frames_used), "seconds": round(time.time() - t0),
+            "centre_sd_of_distance": [round(float(r), 4) for r in cal.centre_sd_relative],
+            "warnings": cal.warnings}  # fmt: skip
     if args.run and args.shelf:
         out["run"] = run_through(cal.rig, truth, Path(args.shelf), Path(args.run))
     text = json.dumps(out, indent=1)

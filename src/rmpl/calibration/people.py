@@ -63,6 +63,9 @@ PNP_PX = 12.0  # the start's two cameras are a few degrees off: PnP inliers are 
 MIN_COMMON = 60  # joint correspondences a pair of tracks needs
 HYPOTHESIS_POINTS = 1000  # joints of a track pair a hypothesis is fitted on
 SUPPORT_PX = 10.0  # median Sampson distance of a track pair of one person
+#: A camera whose centre's 1-sigma exceeds this fraction of its distance to the people
+#: is called unreliable (the report warns, ``rmpl calibrate`` exits with status 3).
+UNRELIABLE_SD = 0.05
 SUPPORT_RATIO = 2.0  # ... or this many times that of the pair that proposed the matrix
 J17 = 17
 
@@ -81,6 +84,8 @@ class PeopleCalibration:
     observations: tuple[int, int]  # kept, total
     floor: str
     moved: list[dict] = field(default_factory=list)
+    centre_sd_relative: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (V,)
+    warnings: list[str] = field(default_factory=list)
 
 
 def intrinsics_only(rig: Rig) -> Rig:
@@ -503,11 +508,11 @@ def _heights(X: np.ndarray) -> np.ndarray:
     out = np.full(X.shape[1], np.nan)
     for g in range(X.shape[1]):
         if (
-            np.isfinite(X[:, g]).all(-1).all(-1).sum() >= 10
+            np.isfinite(X[:, g, :J17]).all(-1).all(-1).sum() >= 10
             or np.isfinite(X[:, g, 11:17]).all(-1).all(-1).sum() >= 10
         ):
             try:
-                out[g] = estimate_height(X[:, g], "coco17")
+                out[g] = estimate_height(X[:, g, :J17], "coco17")
             except (InputError, ValueError):
                 pass
     return out
@@ -566,7 +571,7 @@ def _up_and_floor(X: np.ndarray):
     """(rotation world -> z up, origin, Floor) from the people's joints (T, G, J, 3) m."""
     from rmpl.geometry.floor import fit_floor
 
-    P = X.reshape(-1, J17, 3)
+    P = X[..., :J17, :].reshape(-1, J17, 3)
     v = 0.5 * (P[:, 5] + P[:, 6]) - 0.5 * (P[:, 15] + P[:, 16])
     v = v[np.isfinite(v).all(-1)]
     if len(v) < 10:
@@ -672,7 +677,25 @@ def calibrate_from_people(
     tn = s * (res.t + np.einsum("vij,j->vi", res.R, o / s))
     rig = Rig(tuple(Camera(c.K, Rn[v], tn[v], c.dist, c.size, c.name) for v, c in enumerate(rig0)))
     people = _people_table(groups, rig0, per_person, heights, s)
-    return _result(rig, res, prob, cov, s, (what, sd), people, frames, floor, start)
+    out = _result(rig, res, prob, cov, s, (what, sd), people, frames, floor, start)
+    _reliability(out, cov, centres, Xb)
+    return out
+
+
+def _reliability(out: PeopleCalibration, cov: np.ndarray, centres: np.ndarray, X) -> None:
+    """Each centre's 1-sigma over its distance to the people (unitless), and a warning
+    for every camera above :data:`UNRELIABLE_SD`: too little motion, too few views of
+    the people, or people grouped wrongly leave a camera's place undecided."""
+    middle = np.nanmedian(X.reshape(-1, 3), 0)
+    dist = np.linalg.norm(centres - middle, axis=-1)
+    out.centre_sd_relative = np.sqrt(np.linalg.eigvalsh(cov).max(-1).clip(0)) / dist
+    for cam, r in zip(out.rig, out.centre_sd_relative, strict=True):
+        if not r <= UNRELIABLE_SD:
+            out.warnings.append(
+                f"camera {cam.name}'s centre is uncertain by {100 * r:.0f}% of its distance "
+                f"to the people (more than {100 * UNRELIABLE_SD:.0f}%): this calibration is "
+                "not reliable; record more motion, over more of the floor, seen by more cameras"
+            )
 
 
 def _check_kept(res, prob, rig0: Rig, source) -> None:

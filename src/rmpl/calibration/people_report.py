@@ -33,6 +33,9 @@ def report_dict(cal, mode: str, sync: dict | None = None) -> dict:
                 "name": c.name,
                 "reprojection_rms_px": round(float(cal.rms[v]), 3),
                 "centre_sd_mm": round(1000 * float(cal.centre_sd[v]), 2),
+                "centre_sd_of_distance": None
+                if not len(cal.centre_sd_relative)
+                else round(float(cal.centre_sd_relative[v]), 4),
                 "centre_m": [round(float(x), 4) for x in c.center],
             }
             for v, c in enumerate(cal.rig)
@@ -44,6 +47,7 @@ def report_dict(cal, mode: str, sync: dict | None = None) -> dict:
         "observations": {"kept": cal.observations[0], "total": cal.observations[1]},
         "moved": cal.moved,
         "sync": sync,
+        "warnings": cal.warnings,
     }
 
 
@@ -55,14 +59,18 @@ def _sync_line(sync: dict | None) -> str:
 
 
 def report_markdown(doc: dict) -> str:
-    lines = [
-        f"# Calibration from people ({doc['method']})",
-        "",
-        "| camera | reprojection RMS (px) | centre 1-sigma (mm) |",
-        "|---|---|---|",
+    lines = [f"# Calibration from people ({doc['method']})", ""]
+    if doc.get("warnings"):
+        lines += [f"**WARNING: {w}.**" for w in doc["warnings"]] + [""]
+    lines += [
+        "| camera | reprojection RMS (px) | centre 1-sigma (mm) | of its distance to the people |",
+        "|---|---|---|---|",
     ]
     for c in doc["cameras"]:
-        lines.append(f"| {c['name']} | {c['reprojection_rms_px']:.2f} | {c['centre_sd_mm']:.1f} |")
+        rel = c.get("centre_sd_of_distance")
+        rel = "" if rel is None else f"{100 * rel:.1f}%"
+        lines.append(f"| {c['name']} | {c['reprojection_rms_px']:.2f} | "
+                     f"{c['centre_sd_mm']:.1f} | {rel} |")  # fmt: skip
     sc = doc["scale"]
     obs = doc["observations"]
     lines += [
@@ -121,7 +129,8 @@ def _load(args: argparse.Namespace):
 
 def run_cli(args: argparse.Namespace) -> int:
     """Calibrate from people (``args.from_people``) or correct ``args.refine``; writes
-    ``args.out`` in ``args.format`` and the report beside it. Returns 0."""
+    ``args.out`` in ``args.format`` and the report beside it. Returns 0, or 3 when a
+    camera's place is unreliable (everything is written; the report and log warn)."""
     from rmpl.calibration.people import calibrate_from_people
     from rmpl.io.atomic import atomic_path
     from rmpl.io.calibration import load_rig, save_rig
@@ -164,7 +173,9 @@ def run_cli(args: argparse.Namespace) -> int:
             c["centre_sd_mm"],
         )
     log.info("scale: %s (+-%.1f%%); wrote %s and %s", cal.scale_source, 100 * cal.scale_sd, out, md)
-    return 0
+    for w in cal.warnings:
+        log.warning("WARNING: %s", w)
+    return 3 if cal.warnings else 0
 
 
 def _metres(x) -> float:
