@@ -208,3 +208,11 @@ def test_an_unreliable_camera_is_written_warned_and_exits_3(tmp_path, monkeypatc
     assert len(doc["warnings"]) == sum(r > 0 for r in rel)  # the gauge camera is exact
     assert "WARNING: camera" in (tmp_path / "calibration.md").read_text()
     assert (tmp_path / "calib.toml").is_file()
+
+
+def test_a_static_scene_is_refused_in_one_line():
+    rig = ring_rig(3, rng=2)
+    X = moving_people(np.zeros(60), (1.75,), rng=3)  # one instant, sixty frames
+    kp, sc = observe(X, rig, noise=1.0, rng=2)
+    with pytest.raises(InputError, match="people who move"):
+        calibrate_from_people(kp, sc, rig, max_frames=40)

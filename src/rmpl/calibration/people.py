@@ -31,6 +31,7 @@ joints (17), ``Q`` tracks. Metres, pixels.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +64,8 @@ PNP_PX = 12.0  # the start's two cameras are a few degrees off: PnP inliers are 
 MIN_COMMON = 60  # joint correspondences a pair of tracks needs
 HYPOTHESIS_POINTS = 1000  # joints of a track pair a hypothesis is fitted on
 SUPPORT_PX = 10.0  # median Sampson distance of a track pair of one person
+#: The least motion of the people (see :func:`_motion`) to calibrate from.
+MIN_MOTION = 0.02
 #: A camera whose centre's 1-sigma exceeds this fraction of its distance to the people
 #: is called unreliable (the report warns, ``rmpl calibrate`` exits with status 3).
 UNRELIABLE_SD = 0.05
@@ -115,6 +118,27 @@ def _tracks(keypoints, scores, rig):
         tr = link_people(kp)
         out.append(_normalised(tr, cam))
     return out
+
+
+def _motion(tracks) -> float:
+    """How much the people move: over views and tracks, the largest median (over joints
+    seen in 10 frames or more) of a joint's spread over the frames (the root of its
+    positions' variance), as a fraction of the track's height in the image."""
+    best = 0.0
+    for tr in tracks:  # (T, Q, J, 2) per view
+        for q in range(tr.shape[1]):
+            x = tr[:, q]
+            joints = np.isfinite(x).all(-1).sum(0) >= 10
+            if not joints.any():
+                continue
+            x = x[:, joints]
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore", RuntimeWarning)  # frames without the joints
+                h = np.nanmedian(np.nanmax(x[..., 1], -1) - np.nanmin(x[..., 1], -1))
+                spread = np.median(np.sqrt(np.nanvar(x[..., 0], 0) + np.nanvar(x[..., 1], 0)))
+            if h > 0:
+                best = max(best, float(spread / h))
+    return best
 
 
 def _common(a: np.ndarray, b: np.ndarray):
@@ -639,6 +663,16 @@ def calibrate_from_people(
     _check(keypoints, scores, rig0, source)
     focal = np.array([float(np.mean(np.diag(c.K)[:2])) for c in rig0])
     tracks = _tracks(keypoints, scores, rig0)
+    moving = _motion(tracks)
+    if moving < MIN_MOTION:
+        raise InputError(
+            source,
+            "keypoints",
+            f"people who move (a joint's spread over the frames at least {100 * MIN_MOTION:.0f}% "
+            "of the person's height in the image): a still scene gives a few points however "
+            "many frames",
+            f"{100 * moving:.1f}%",
+        )
     R, t, groups, (obs, ids), a, b = _initial(tracks, rig0, focal, start, source)
     frames = _frames(obs, max_frames)
     if not len(frames) or not groups:
