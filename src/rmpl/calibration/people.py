@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rmpl.calibration.people_assoc import triangulate_normalised
 from rmpl.errors import InputError
 from rmpl.geometry.camera import Camera, Rig
 
@@ -139,6 +140,19 @@ def _motion(tracks) -> float:
             if h > 0:
                 best = max(best, float(spread / h))
     return best
+
+
+def _check_motion(tracks, source) -> None:
+    moving = _motion(tracks)
+    if moving < MIN_MOTION:
+        raise InputError(
+            source,
+            "keypoints",
+            f"people who move (a joint's spread over the frames at least {100 * MIN_MOTION:.0f}% "
+            "of the person's height in the image): a still scene gives a few points however "
+            "many frames",
+            f"{100 * moving:.1f}%",
+        )
 
 
 def _common(a: np.ndarray, b: np.ndarray):
@@ -302,22 +316,6 @@ def _observations(tracks, groups, V: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- geometry
-
-
-def triangulate_normalised(obs: np.ndarray, R: np.ndarray, t: np.ndarray, use) -> np.ndarray:
-    """DLT of normalised observations (..., V, 2) through cameras (V, 3, 3), (V, 3); only
-    the views in ``use`` (V,) bool. Returns (..., 3), NaN with fewer than two views."""
-    P = np.concatenate([R, t[:, :, None]], -1)  # (V, 3, 4)
-    ok = np.isfinite(obs).all(-1) & np.asarray(use)
-    x = np.nan_to_num(obs)
-    rows = np.concatenate([x[..., 0:1] * P[:, 2] - P[:, 0], x[..., 1:2] * P[:, 2] - P[:, 1]], -2)
-    rows = rows * np.concatenate([ok, ok], -1)[..., None]  # (..., 2V, 4)
-    _, _, vt = np.linalg.svd(rows)
-    X = vt[..., -1, :]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        X = X[..., :3] / X[..., 3:]
-    X[ok.sum(-1) < 2] = np.nan
-    return X
 
 
 def _pnp(X: np.ndarray, x: np.ndarray, focal: float):
@@ -656,48 +654,45 @@ def calibrate_from_people(
             images, or people too few to place every camera.
     """
     from rmpl.calibration.people_assoc import MAX_COST, reassociate
-    from rmpl.calibration.people_bundle import adjust, centre_covariance
+    from rmpl.calibration.people_bundle import adjust
 
     keypoints, scores = np.asarray(keypoints, float), np.asarray(scores, float)
     rig0 = intrinsics_only(intrinsics)
     _check(keypoints, scores, rig0, source)
     focal = np.array([float(np.mean(np.diag(c.K)[:2])) for c in rig0])
     tracks = _tracks(keypoints, scores, rig0)
-    moving = _motion(tracks)
-    if moving < MIN_MOTION:
-        raise InputError(
-            source,
-            "keypoints",
-            f"people who move (a joint's spread over the frames at least {100 * MIN_MOTION:.0f}% "
-            "of the person's height in the image): a still scene gives a few points however "
-            "many frames",
-            f"{100 * moving:.1f}%",
-        )
+    _check_motion(tracks, source)
     R, t, groups, (obs, ids), a, b = _initial(tracks, rig0, focal, start, source)
-    frames = _frames(obs, max_frames)
-    if not len(frames) or not groups:
-        raise InputError(source, "keypoints", "frames where two cameras see one person")
-    obs, ids = obs[frames], ids[frames]
-    X = triangulate_normalised(np.moveaxis(obs, 2, 3), R, t, np.ones(len(rig0), bool))
-    s0 = _prescale(X) if start is None else 1.0
-    t, X = t * s0, X * s0
-    prob, X0, index = _problem(obs, X, focal, ids)
-    L0 = _start_lengths(X)
-    res = adjust(prob, R, t, X0, L0, fixed=a, gauge_cam=b)
-    for max_cost in MAX_COST:  # who is who again, through the cameras found
-        rig_now = Rig(tuple(Camera(c.K, res.R[v], res.t[v], c.dist, c.size, c.name)
-                            for v, c in enumerate(rig0)))  # fmt: skip
-        obs, ids, groups = reassociate(keypoints, scores, rig_now, max_cost, MIN_SCORE,
-                                       _normalised)  # fmt: skip
+    rescale = start is None  # to about metres from the prior, so that bones mean metres
+    for max_cost in (None, *MAX_COST):  # then who is who again, through the cameras found
+        if max_cost is not None:
+            rig_now = Rig(tuple(Camera(c.K, R[v], t[v], c.dist, c.size, c.name)
+                                for v, c in enumerate(rig0)))  # fmt: skip
+            obs, ids, groups = reassociate(keypoints, scores, rig_now, max_cost, MIN_SCORE,
+                                           _normalised)  # fmt: skip
         frames = _frames(obs, max_frames)
         if not len(frames) or not groups:
             raise InputError(source, "keypoints", "frames where two cameras see one person")
         obs, ids = obs[frames], ids[frames]
-        X = triangulate_normalised(np.moveaxis(obs, 2, 3), res.R, res.t, np.ones(len(rig0), bool))
+        X = triangulate_normalised(np.moveaxis(obs, 2, 3), R, t, np.ones(len(rig0), bool))
+        if rescale:
+            s0, rescale = _prescale(X), False
+            t, X = t * s0, X * s0
         prob, X0, index = _problem(obs, X, focal, ids)
         L0 = _start_lengths(X)
-        res = adjust(prob, res.R, res.t, X0, L0, fixed=a, gauge_cam=b)
+        res = adjust(prob, R, t, X0, L0, fixed=a, gauge_cam=b)
+        R, t = res.R, res.t
     _check_kept(res, prob, rig0, source)
+    return _finish(res, prob, (X, X0, index, L0), groups, frames, rig0, start,
+                   (height, camera_distance), source)  # fmt: skip
+
+
+def _finish(res, prob, points, groups, frames, rig0: Rig, start, scale_by, source):
+    """The adjusted cameras in metres, z up on the floor (or in ``start``'s frame), with
+    the report's figures."""
+    from rmpl.calibration.people_bundle import centre_covariance
+
+    X, X0, index, L0 = points
     Xb = np.full(X.shape, np.nan)
     Xb[index >= 0] = res.points
     cov = centre_covariance(res, len(L0))
@@ -706,7 +701,7 @@ def calibrate_from_people(
     per_person = np.array([seen[index[:, g][index[:, g] >= 0]].sum() for g in range(len(groups))])
     heights = _heights(Xb)
     scene = (Xb, heights, per_person, centres, cov)
-    s, Rw, o, what, sd, floor = _frame(res, scene, rig0, start, height, camera_distance, source)
+    s, Rw, o, what, sd, floor = _frame(res, scene, rig0, start, *scale_by, source)
     Rn = np.einsum("vij,kj->vik", res.R, Rw)  # R Rw^T
     tn = s * (res.t + np.einsum("vij,j->vi", res.R, o / s))
     rig = Rig(tuple(Camera(c.K, Rn[v], tn[v], c.dist, c.size, c.name) for v, c in enumerate(rig0)))

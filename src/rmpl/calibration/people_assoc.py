@@ -21,7 +21,7 @@ import numpy as np
 
 from rmpl.geometry.camera import Rig
 
-__all__ = ["MAX_COST", "reassociate"]
+__all__ = ["MAX_COST", "reassociate", "triangulate_normalised"]
 
 #: The largest mean ray-to-ray distance (metres) at which two views' people are one
 #: person, per round: loose while the cameras are degrees off, then that of ``rmpl run``.
@@ -92,9 +92,23 @@ def reassociate(
 
 def _triangulate(keypoints: np.ndarray, rig: Rig, normalise) -> np.ndarray:
     """The people of one frame, (N, V, J, 2) px -> (N, J, 3), NaN below two views."""
-    from rmpl.calibration.people import triangulate_normalised
-
     if not len(keypoints):
         return np.zeros((0, J17, 3))
     x = np.stack([normalise(keypoints[:, v], cam) for v, cam in enumerate(rig)], 1)
     return triangulate_normalised(np.moveaxis(x, 1, 2), rig.R, rig.t, np.ones(len(rig), bool))
+
+
+def triangulate_normalised(obs: np.ndarray, R: np.ndarray, t: np.ndarray, use) -> np.ndarray:
+    """DLT of normalised observations (..., V, 2) through cameras (V, 3, 3), (V, 3); only
+    the views in ``use`` (V,) bool. Returns (..., 3), NaN with fewer than two views."""
+    P = np.concatenate([R, t[:, :, None]], -1)  # (V, 3, 4)
+    ok = np.isfinite(obs).all(-1) & np.asarray(use)
+    x = np.nan_to_num(obs)
+    rows = np.concatenate([x[..., 0:1] * P[:, 2] - P[:, 0], x[..., 1:2] * P[:, 2] - P[:, 1]], -2)
+    rows = rows * np.concatenate([ok, ok], -1)[..., None]  # (..., 2V, 4)
+    _, _, vt = np.linalg.svd(rows)
+    X = vt[..., -1, :]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        X = X[..., :3] / X[..., 3:]
+    X[ok.sum(-1) < 2] = np.nan
+    return X
