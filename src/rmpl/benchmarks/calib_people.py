@@ -82,6 +82,7 @@ def run_through(found, truth, root: Path, out: Path) -> dict:
     with open(out / "eval" / "results.csv", encoding="utf-8") as f:
         rows = {r["method"]: r for r in csv.DictReader(f)}
     got = {n: {"mpjpe_mm": round(float(rows[n]["mpjpe"]), 1),
+               "pa_mpjpe_mm": round(float(rows[n]["pa_mpjpe"]), 1),
                "pcp_mean": round(float(rows[n]["pcp_mean"]), 1)} for n in calibs}  # fmt: skip
     ratio = got["found"]["mpjpe_mm"] / got["true"]["mpjpe_mm"]
     return got | {"mpjpe_ratio": round(ratio, 3), "ratio_within_target": ratio <= 1.1}
