@@ -62,7 +62,7 @@ def test_the_2d_is_interpolated_between_frames_per_person():
     norm = np.arange(T * P * J * 2, dtype=float).reshape(T, P, J, 2)
     nxt = np.tile([1, 0], (T, 1))  # the people swap places in every next frame
     nxt[-1] = -1
-    view = _View(norm, nxt, 25.0, 1000.0)
+    view = _View(norm, nxt, np.zeros((T, P), int), 25.0, 1000.0)
     x = _at(view, np.array([0.25, 2.0, 3.5, -0.5]))
     assert np.allclose(x[0, 0], 0.75 * norm[0, 0] + 0.25 * norm[1, 1])
     assert np.allclose(x[1], norm[2])

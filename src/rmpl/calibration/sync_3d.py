@@ -47,6 +47,13 @@ MIN_Z = 3.0
 PEAK_WIDTH = 0.2
 #: Fewest frames of a pair that must overlap at an offset for it to count.
 MIN_OVERLAP = 20
+#: Judge the timing by each joint's epipolar distance minus its mean over the frames of
+#: the same two people, so that a constant disagreement (calibration error, joints
+#: defined differently in two views) does not pull the offset towards the lag at which
+#: the motion happens to cancel it. Off: it needs long clean tracks, and with several
+#: people (Shelf) the pairing of tracks is too unstable (``rmpl.benchmarks.sync
+#: --bias-free`` measures it).
+BIAS_FREE = False
 #: At most this many frames of a view are compared (evenly spaced), to bound the work.
 MAX_FRAMES = 600
 #: Fine stage: span (frames of the fastest camera) and steps (frames).
@@ -57,6 +64,7 @@ FINE_SPAN, FINE_GRID, FINE_STEP = 2.0, 0.1, 0.05
 class _View:
     norm: np.ndarray  # (T, P, J, 2) normalised image coordinates, NaN = missing
     nxt: np.ndarray  # (T, P) the same person's index in the next frame, -1 if none
+    track: np.ndarray  # (T, P) each person's track (link_index), -1 where nobody is
     fps: float
     focal: float
 
@@ -112,7 +120,7 @@ def _views(keypoints: np.ndarray, fps: np.ndarray, rig) -> list[_View]:
         nxt = np.where(same.any(-1), same.argmax(-1), -1)
         nxt = np.concatenate([nxt, np.full((1, kp.shape[1]), -1)])
         focal = float(np.mean(np.diag(rig[v].K)[:2]))
-        out.append(_View(_normalised(kp, rig[v]), nxt, float(fps[v]), focal))
+        out.append(_View(_normalised(kp, rig[v]), nxt, rows, float(fps[v]), focal))
     return out
 
 
@@ -150,7 +158,6 @@ def _homog(x: np.ndarray) -> np.ndarray:
 def _pair_curve(va: _View, vb: _View, E: np.ndarray, deltas: np.ndarray) -> _Curve:
     """The disagreement of views a and b (E: x_b^T E x_a = 0) at each offset ``deltas``
     (seconds, b's clock ahead of a's), per frame of a (at most :data:`MAX_FRAMES`)."""
-    from rmpl.calibration.sync import _quiet
 
     seen = np.flatnonzero(np.isfinite(va.norm).all(-1).any((-1, -2)))
     step = max(1, int(np.ceil(len(seen) / MAX_FRAMES))) if len(seen) else 1
@@ -168,12 +175,54 @@ def _pair_curve(va: _View, vb: _View, E: np.ndarray, deltas: np.ndarray) -> _Cur
         bframe[k, use] = np.round(fb[use]).astype(int)
         hb = _homog(_at(vb, fb[use]))  # (S', Pb, J, 3)
         nb = np.linalg.norm(np.einsum("ji,...j->...i", E, hb)[..., :2], axis=-1)
-        num = np.abs(np.einsum("sajk,sbjk->sabj", la[use], hb))  # (S', Pa, Pb, J)
+        num = np.einsum("sajk,sbjk->sabj", la[use], hb)  # (S', Pa, Pb, J)
         dist = 0.5 * (num / na[use][:, :, None] * vb.focal + num / nb[:, None] * va.focal)
-        with _quiet():
-            per = np.nanmedian(np.minimum(dist, EPIPOLAR_CAP), -1)  # (S', Pa, Pb)
-            out[k, use] = np.nanmean(np.nanmin(per, -1), -1)
+        tb = vb.track[np.clip(np.floor(fb[use] + 1e-6).astype(int), 0, Tb - 1)]
+        out[k, use] = _frame_disagreement(dist, va.track[fa[use]], tb)
     return _Curve(np.asarray(deltas, float), out, bframe)
+
+
+def _frame_disagreement(dist: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.ndarray:
+    """Each frame's disagreement (S,) from the signed epipolar distances (S, Pa, Pb, J) of
+    every pair of people: each of a's people matched to the b person of least median
+    distance; with :data:`BIAS_FREE`, each joint's distance minus its mean over the frames
+    of the same pair of tracks (``ta`` (S, Pa), ``tb`` (S, Pb)); the median over joints
+    of the absolute (capped), the mean over people."""
+    from rmpl.calibration.sync import _quiet
+
+    with _quiet():
+        per = np.nanmedian(np.minimum(np.abs(dist), EPIPOLAR_CAP), -1)  # (S, Pa, Pb)
+    per = np.where(np.isfinite(per), per, np.inf)
+    m = per.argmin(-1)  # (S, Pa)
+    d = np.take_along_axis(dist, m[:, :, None, None], axis=2)[:, :, 0]  # (S, Pa, J)
+    d = np.where(np.isfinite(per.min(-1))[..., None], d, np.nan)
+    if BIAS_FREE:
+        pair = np.where(ta >= 0, ta * (int(tb.max()) + 2) + np.take_along_axis(tb, m, 1), -1)
+        d = _less_bias(d, pair)
+    with _quiet():
+        return np.nanmean(np.nanmedian(np.minimum(np.abs(d), EPIPOLAR_CAP), -1), -1)
+
+
+def _less_bias(d: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Signed distances (S, P, J) minus their mean over each group's entries (``group``
+    (S, P), -1 = none), joint by joint; NaN where a group's joint has fewer than
+    :data:`MIN_OVERLAP` entries (too few to know its bias)."""
+    J = d.shape[-1]
+    flat, g = d.reshape(-1, J), group.ravel()
+    out = np.full_like(flat, np.nan)
+    ok = np.flatnonzero(g >= 0)
+    if not len(ok):
+        return out.reshape(d.shape)
+    _, inv = np.unique(g[ok], return_inverse=True)
+    x = flat[ok]
+    fin = np.isfinite(x)
+    sums = np.zeros((inv.max() + 1, J))
+    count = np.zeros((inv.max() + 1, J))
+    np.add.at(sums, inv, np.where(fin, x, 0.0))
+    np.add.at(count, inv, fin)
+    mean = sums / np.maximum(count, 1)
+    out[ok] = np.where(count[inv] >= MIN_OVERLAP, x - mean[inv], np.nan)
+    return out.reshape(d.shape)
 
 
 def _curves(views: list[_View], rig, deltas_of) -> dict[tuple[int, int], _Curve]:
