@@ -79,8 +79,10 @@ class Sync:
         method: ``"motion"`` (whole frames, from the 2D motion alone), ``"3d"`` (whole
             frames, from the views' agreement through a calibration) or ``"3d-fine"``
             (to a fraction of a frame).
-        residual: per camera, the fine stage's median epipolar distance at the
-            offset, pixels (NaN without it).
+        residual: per camera, the mean epipolar disagreement at the offset, pixels
+            (NaN without a calibration).
+        uncertainty: per camera, the offset's standard error in its own frames (NaN
+            unless found to a fraction of a frame; 0 for the reference).
     """
 
     views: list[str]
@@ -89,6 +91,7 @@ class Sync:
     confidence: np.ndarray
     method: str = "motion"
     residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def offset_frames(self) -> np.ndarray:
@@ -97,6 +100,7 @@ class Sync:
 
     def to_dict(self) -> dict:
         res = self.residual if len(self.residual) else np.full(len(self.views), np.nan)
+        err = self.uncertainty if len(self.uncertainty) else np.full(len(self.views), np.nan)
         cams = {}
         for v, name in enumerate(self.views):
             frames = float(self.offset_frames[v])
@@ -108,6 +112,7 @@ class Sync:
                 "fps": float(self.fps[v]),
                 "confidence": round(float(self.confidence[v]), 3),
                 "epipolar_px": None if not np.isfinite(res[v]) else round(float(res[v]), 3),
+                "uncertainty_frames": None if np.isnan(err[v]) else round(float(err[v]), 3),
             }
         return {
             "format": _FORMAT,
@@ -425,8 +430,9 @@ def find_sync(
         return Sync(list(views), fps, offsets, conf, "motion")
     from rmpl.calibration.sync_3d import agreement_offsets
 
-    off, conf, resid = agreement_offsets(kp, fps, rig, max_offset, list(views), source, fine)
-    return Sync(list(views), fps, off - off[0], conf, "3d-fine" if fine else "3d", resid)
+    off, conf, resid, err = agreement_offsets(kp, fps, rig, max_offset, list(views), source,
+                                              fine)  # fmt: skip
+    return Sync(list(views), fps, off - off[0], conf, "3d-fine" if fine else "3d", resid, err)
 
 
 def _trim(speed: np.ndarray) -> np.ndarray:

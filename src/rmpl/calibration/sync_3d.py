@@ -24,7 +24,9 @@
   usual bar for "not noise"); the tests check it on synthetic sequences.
 - **Fraction of a frame.** The same sum, sampled every 0.1 frame within two frames of the
   whole-frame answer, minimised over each camera's offset in steps of 0.05 frame (every
-  camera again, three sweeps), the minimum refined by a parabola.
+  camera again, three sweeps), the minimum refined by a parabola. Its standard error is
+  that of the slope there (per-frame slopes, the same effective number of frames) over
+  the curvature: an error of half a frame or more means the whole frame is uncertain.
 
 Shape glossary: ``T`` frames, ``V`` views, ``P`` people, ``J`` joints, ``S`` frames used.
 """
@@ -225,10 +227,13 @@ def _less_bias(d: np.ndarray, group: np.ndarray) -> np.ndarray:
     return out.reshape(d.shape)
 
 
-def _curves(views: list[_View], rig, deltas_of) -> dict[tuple[int, int], _Curve]:
-    V = len(views)
+def _curves(views: list[_View], rig, deltas_of, desc: str) -> dict[tuple[int, int], _Curve]:
+    """Every pair's curve (a progress bar per pair of views)."""
+    from tqdm.auto import tqdm
+
+    pairs = [(a, b) for a in range(len(views)) for b in range(a + 1, len(views))]
     return {(a, b): _pair_curve(views[a], views[b], _essential(rig, a, b), deltas_of(a, b))
-            for a in range(V) for b in range(a + 1, V)}  # fmt: skip
+            for a, b in tqdm(pairs, desc=desc, unit="pair", leave=False)}  # fmt: skip
 
 
 class _Objective:
@@ -293,6 +298,37 @@ def _whole_frames(obj: _Objective, grids: list[np.ndarray], fps: np.ndarray) -> 
     return best
 
 
+def _var_of_sum(x: np.ndarray) -> float:
+    """The variance of the sum of a per-frame series, its frames correlated in time as an
+    AR(1) process (the lag-one autocorrelation, clipped to [0, 0.99])."""
+    c = x - x.mean()
+    den = float((c * c).sum())
+    rho = min(max(float((c[1:] * c[:-1]).sum() / den) if den > 0 else 0.0, 0.0), 0.99)
+    return len(x) * float(x.var(ddof=1)) * (1 + rho) / (1 - rho)
+
+
+def _uncertainty(obj: _Objective, curves, off: np.ndarray, fps: np.ndarray) -> np.ndarray:
+    """Each camera's standard error, frames: the error of its pairs' mean slope at the
+    answer (per-frame slopes, :func:`_var_of_sum`) over the curvature of its profile
+    (half a frame either side); inf where the profile is not convex there."""
+    out = np.zeros(len(off))
+    for v in range(1, len(off)):
+        var = 0.0
+        for (a, b), cv in curves.items():
+            k = int(np.argmin(np.abs(cv.deltas - (off[b] - off[a]))))
+            if v not in (a, b) or not 0 < k < len(cv.deltas) - 1:
+                continue
+            g = (cv.frames[k + 1] - cv.frames[k - 1]) / (cv.deltas[k + 1] - cv.deltas[k - 1])
+            g = g[np.isfinite(g)]
+            if len(g) >= MIN_OVERLAP:
+                var += _var_of_sum(g) / len(g) ** 2
+        h = 0.5 / fps[v]
+        p = obj.profile(v, off[v] + np.array([-h, 0.0, h]), off)
+        curv = (p[0] - 2 * p[1] + p[2]) / h**2
+        out[v] = np.sqrt(var) / curv * fps[v] if curv > 0 and var > 0 else np.inf
+    return out
+
+
 def _z(curves, off: np.ndarray, v: int, other: float) -> float:
     """How many standard errors the per-frame disagreement of camera v's pairs is worse
     with v at ``other`` than at ``off[v]`` (AR(1) effective frames); NaN when no pair
@@ -309,12 +345,7 @@ def _z(curves, off: np.ndarray, v: int, other: float) -> float:
         diff = diff[np.isfinite(diff)]
         if len(diff) < MIN_OVERLAP:
             continue
-        num, used = num + float(diff.sum()), used + 1
-        x = diff - diff.mean()
-        den = float((x * x).sum())
-        rho = float((x[1:] * x[:-1]).sum() / den) if den > 0 else 0.0
-        rho = min(max(rho, 0.0), 0.99)
-        var += len(diff) * diff.var(ddof=1) * (1 + rho) / (1 - rho)
+        num, used, var = num + float(diff.sum()), used + 1, var + _var_of_sum(diff)
     if not used:
         return np.nan  # no frames to compare there: not a competitor
     if var <= 0:
@@ -355,10 +386,11 @@ def _decide(obj, curves, grids, off, fps, views, source) -> np.ndarray:
     return z
 
 
-def _fine(views, rig, off: np.ndarray, fps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _fine(views, rig, off: np.ndarray, fps: np.ndarray):
+    """(offsets, residual px, uncertainty frames) to a fraction of a frame."""
     rate = float(np.max(fps))
     local = np.arange(-FINE_SPAN, FINE_SPAN + 1e-9, FINE_GRID) / rate
-    curves = _curves(views, rig, lambda a, b: off[b] - off[a] + local)
+    curves = _curves(views, rig, lambda a, b: off[b] - off[a] + local, "sync: fraction")
     obj = _Objective(curves, len(off))
     steps = np.arange(-1.0, 1.0 + 1e-9, FINE_STEP)
     grids = [np.array([0.0])] + [off[v] + steps / fps[v] for v in range(1, len(off))]
@@ -371,7 +403,7 @@ def _fine(views, rig, off: np.ndarray, fps: np.ndarray) -> tuple[np.ndarray, np.
             out[v] += float(np.clip(0.5 * (p[0] - p[2]) / den, -1, 1)) * FINE_STEP / fps[v]
     resid = np.array([np.nanmean([cv.raw(out[b] - out[a]) for (a, b), cv in curves.items()
                                   if v in (a, b)]) for v in range(len(off))])  # fmt: skip
-    return out, resid
+    return out, resid, _uncertainty(obj, curves, out, fps)
 
 
 def agreement_offsets(
@@ -394,7 +426,8 @@ def agreement_offsets(
 
     Returns:
         (offsets, confidence in [0, 1): z / (z + MIN_Z), the mean epipolar disagreement
-        at the answer per camera, pixels).
+        at the answer per camera, pixels, and each offset's standard error in frames of
+        its camera, NaN without ``fine``).
 
     Raises:
         InputError: a camera whose offset the motion does not decide.
@@ -405,7 +438,7 @@ def agreement_offsets(
     rate = float(np.max(fps))
     n = int(np.ceil(2 * max_offset * rate))
     deltas = np.arange(-n, n + 1) / rate
-    curves = _curves(vs, rig, lambda a, b: deltas)
+    curves = _curves(vs, rig, lambda a, b: deltas, "sync: whole frames")
     obj = _Objective(curves, V)
     grids = [np.array([0.0])] + [
         np.arange(-np.ceil(max_offset * f), np.ceil(max_offset * f) + 1) / f for f in fps[1:]
@@ -417,6 +450,6 @@ def agreement_offsets(
     if not fine:
         resid = np.array([np.nanmean([cv.raw(off[b] - off[a]) for (a, b), cv in curves.items()
                                       if v in (a, b)]) for v in range(V)])  # fmt: skip
-        return off, conf, resid
-    off, resid = _fine(vs, rig, off, fps)
-    return off, conf, resid
+        return off, conf, resid, np.full(V, np.nan)
+    off, resid, err = _fine(vs, rig, off, fps)
+    return off, conf, resid, err
