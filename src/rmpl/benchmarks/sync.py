@@ -47,9 +47,10 @@ def _find(x, fps, rig, max_offset):
     from rmpl.errors import InputError
 
     try:
-        return find_sync(x, fps, rig.names, rig, max_offset).offset_frames, None
+        sync = find_sync(x, fps, rig.names, rig, max_offset)
     except InputError as e:
         return None, str(e)
+    return sync.offset_frames, np.round(sync.uncertainty, 2).tolist()
 
 
 def real_trials(keypoints, rig, fps, trials, max_shift, window, seed=0) -> dict:
@@ -67,7 +68,7 @@ def real_trials(keypoints, rig, fps, trials, max_shift, window, seed=0) -> dict:
     if base is None:  # measured against zero then, and said so
         base, why_base = np.zeros(V), why
     else:
-        why_base = None
+        why_base, base_err = None, why
     max_offset = (1.2 * max_shift + np.ceil(np.abs(base).max())) / fps
     rng = np.random.default_rng(seed)
     rows = []
@@ -80,12 +81,14 @@ def real_trials(keypoints, rig, fps, trials, max_shift, window, seed=0) -> dict:
         if found is not None:
             rel = found - base
             row.update(found=np.round(found, 2).tolist(), minus_base=np.round(rel, 2).tolist(),
+                       uncertainty_frames=why,
                        exact=int((np.round(rel) == shift)[1:].sum()),
                        exact_vs_zero=int((np.round(found) == shift)[1:].sum()))  # fmt: skip
         rows.append(row)
     done = [r for r in rows if "exact" in r]
     return {
         "base": np.round(base, 2).tolist() if why_base is None else why_base,
+        "base_uncertainty_frames": None if why_base else base_err,
         "trials": rows,
         "cameras": trials * (V - 1),
         "cameras_exact": sum(r["exact"] for r in done),
