@@ -3,6 +3,8 @@ frame rates, the joint solve, and too little motion refused rather than guessed.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -67,3 +69,22 @@ def test_the_2d_is_interpolated_between_frames_per_person():
     assert np.allclose(x[0, 0], 0.75 * norm[0, 0] + 0.25 * norm[1, 1])
     assert np.allclose(x[1], norm[2])
     assert np.isnan(x[2:]).all()  # outside the recording
+
+
+def test_run_sync_auto_finds_and_reports_the_offsets(tmp_path):
+    from rmpl.cli import main
+    from rmpl.io.calibration import save_rig
+    from rmpl.io.keypoints import Keypoints2D, save_keypoints
+
+    fps = np.full(3, 30.0)
+    kp, rig = _recording(np.array([0.0, 6 / 30, -4 / 30]), fps, seconds=2.5, people=(1.75,))
+    save_rig(rig, tmp_path / "calib.toml")
+    scores = np.isfinite(kp[..., 0]) * 0.9
+    save_keypoints(Keypoints2D(kp, scores, "coco17", rig.names, None, 30.0), tmp_path / "kp.npz")
+    args = ["run", "--calib", str(tmp_path / "calib.toml"), "--keypoints",
+            str(tmp_path / "kp.npz"), "--method", "triangulate", "--no-pictures",
+            "--sync", "auto", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(args) in (0, 3)
+    sync = json.loads((tmp_path / "run" / "report.json").read_text())["sync"]
+    assert sync["source"] == "auto"
+    assert [round(c["offset_frames"]) for c in sync["cameras"].values()] == [0, 6, -4]
