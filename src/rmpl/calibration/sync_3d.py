@@ -22,9 +22,11 @@
   effective number of frames); offsets where no pair overlaps are not compared. The rule
   and its value were fixed before any recording was measured (three standard errors, the
   usual bar for "not noise"); the tests check it on synthetic sequences.
-- **Fraction of a frame.** The same sum, sampled every 0.1 frame within two frames of the
-  whole-frame answer, minimised over each camera's offset in steps of 0.05 frame (every
-  camera again, three sweeps), the minimum refined by a parabola. Its standard error is
+- **Fraction of a frame.** The same sum, sampled every 0.1 frame (of the fastest camera)
+  within two frames of the slowest camera around the whole-frame answer, minimised over
+  each camera's offset within one frame of the slowest camera (a fast camera's whole frame
+  is pulled by the rounding of the slow ones) in steps of 0.05 of its own frames (every
+  camera in turn until none moves), the minimum refined by a parabola. Its standard error is
   that of the slope there (per-frame slopes, the same effective number of frames) over
   the curvature: an error of half a frame or more means the whole frame is uncertain.
 
@@ -58,7 +60,8 @@ MIN_OVERLAP = 20
 BIAS_FREE = False
 #: At most this many frames of a view are compared (evenly spaced), to bound the work.
 MAX_FRAMES = 600
-#: Fine stage: span (frames of the fastest camera) and steps (frames).
+#: Fine stage: span (frames of the slowest camera), the curves' step (frames of the
+#: fastest) and the offsets' step (frames of each camera).
 FINE_SPAN, FINE_GRID, FINE_STEP = 2.0, 0.1, 0.05
 
 
@@ -389,12 +392,14 @@ def _decide(obj, curves, grids, off, fps, views, source) -> np.ndarray:
 def _fine(views, rig, off: np.ndarray, fps: np.ndarray):
     """(offsets, residual px, uncertainty frames) to a fraction of a frame."""
     rate = float(np.max(fps))
-    local = np.arange(-FINE_SPAN, FINE_SPAN + 1e-9, FINE_GRID) / rate
+    slow = float(np.min(fps))
+    local = np.arange(-FINE_SPAN / slow, FINE_SPAN / slow + 1e-9, FINE_GRID / rate)
     curves = _curves(views, rig, lambda a, b: off[b] - off[a] + local, "sync: fraction")
     obj = _Objective(curves, len(off))
-    steps = np.arange(-1.0, 1.0 + 1e-9, FINE_STEP)
-    grids = [np.array([0.0])] + [off[v] + steps / fps[v] for v in range(1, len(off))]
-    out = _descend(obj, grids, off, sweeps=3)
+    grids = [np.array([0.0])]
+    for v in range(1, len(off)):
+        grids.append(off[v] + np.arange(-1 / slow, 1 / slow + 1e-9, FINE_STEP / fps[v]))
+    out = _descend(obj, grids, off, sweeps=100)
     for v in range(1, len(off)):
         g = out[v] + np.array([-1.0, 0.0, 1.0]) * FINE_STEP / fps[v]
         p = obj.profile(v, g, out)
