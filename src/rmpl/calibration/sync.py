@@ -10,19 +10,19 @@ fraction of a frame (fine):
   cross-correlated (normalised, over the overlap) at every lag up to ``max_offset``
   seconds on a common time grid (the highest frame rate), and the offsets are the weighted
   least-squares solution of the pairs' peaks, rounded to whole frames of each camera.
-- **fine:** with a calibration, each camera's offset is searched within one frame of the
-  coarse one for the value at which its people agree best with every other view: the
-  median distance of each joint from the epipolar line of its match (pixels), what the
-  reprojection residual of a two-view triangulation measures; the 2D is interpolated
-  between frames. The minimum is refined by a parabola.
+- **with a calibration** (:mod:`rmpl.calibration.sync_3d`): the offsets, whole frames and
+  then a fraction, at which the views' people agree best through the cameras (the
+  epipolar distance of each joint from its match in every other view), every camera
+  solved jointly against every other over every whole-frame lag up to ``max_offset``
+  seconds; the coarse stage is not needed there.
 
 Convention: ``offset_seconds`` of a camera is how far its clock is ahead of the
 reference's: the instant the reference records at time ``s`` (its frame ``s * fps_ref``)
 is this camera's frame ``(s + offset_seconds) * fps``. A camera that started recording 2 s
 before the reference has ``offset_seconds = 2``. The reference (the first view) has 0.
 
-A recording whose motion does not decide (a static scene, a peak no higher than the
-others) is refused with an :class:`~rmpl.errors.InputError`, never guessed.
+A recording whose motion does not decide (a static scene, a peak or valley no clearer
+than the others) is refused with an :class:`~rmpl.errors.InputError`, never guessed.
 
 Shape glossary: ``T`` frames, ``V`` views, ``P`` people, ``J`` joints.
 """
@@ -44,13 +44,11 @@ __all__ = [
     "Sync",
     "apply_sync",
     "coarse_offsets",
-    "fine_offsets",
     "find_sync",
     "link_index",
     "link_people",
     "motion_speed",
     "read_sync",
-    "scan_offsets",
     "write_sync",
 ]
 
@@ -64,15 +62,6 @@ MIN_MARGIN = 0.1
 PEAK_WIDTH = 0.2
 #: Fewest overlapping samples (of the common grid) a lag needs.
 MIN_OVERLAP = 20
-#: Fine search: half-width in frames of the camera, and step.
-FINE_HALF_WIDTH = 1.0
-FINE_STEP = 0.1
-#: A joint's epipolar distance is capped at this many pixels (a wrong match or joint).
-EPIPOLAR_CAP = 30.0
-#: Whole-frame scan: the best lag's valley must be this deep under the curve's median
-#: (pixels), and the next valley higher by this fraction of that depth.
-MIN_DEPTH = 0.5
-MIN_PROMINENCE = 0.2
 _FORMAT = "rmpl.sync"
 
 
@@ -90,8 +79,10 @@ class Sync:
         method: ``"motion"`` (whole frames, from the 2D motion alone), ``"3d"`` (whole
             frames, from the views' agreement through a calibration) or ``"3d-fine"``
             (to a fraction of a frame).
-        residual: per camera, the fine stage's median epipolar distance at the
-            offset, pixels (NaN without it).
+        residual: per camera, the mean epipolar disagreement at the offset, pixels
+            (NaN without a calibration).
+        uncertainty: per camera, the offset's standard error in its own frames (NaN
+            unless found to a fraction of a frame; 0 for the reference).
     """
 
     views: list[str]
@@ -100,6 +91,7 @@ class Sync:
     confidence: np.ndarray
     method: str = "motion"
     residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    uncertainty: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def offset_frames(self) -> np.ndarray:
@@ -108,6 +100,7 @@ class Sync:
 
     def to_dict(self) -> dict:
         res = self.residual if len(self.residual) else np.full(len(self.views), np.nan)
+        err = self.uncertainty if len(self.uncertainty) else np.full(len(self.views), np.nan)
         cams = {}
         for v, name in enumerate(self.views):
             frames = float(self.offset_frames[v])
@@ -119,6 +112,7 @@ class Sync:
                 "fps": float(self.fps[v]),
                 "confidence": round(float(self.confidence[v]), 3),
                 "epipolar_px": None if not np.isfinite(res[v]) else round(float(res[v]), 3),
+                "uncertainty_frames": None if np.isnan(err[v]) else round(float(err[v]), 3),
             }
         return {
             "format": _FORMAT,
@@ -387,25 +381,6 @@ def _normalised(points: np.ndarray, cam) -> np.ndarray:
     return undistort(np.stack([u, v], -1), cam.dist)
 
 
-def _epipolar_cost(xa: np.ndarray, xb: np.ndarray, E: np.ndarray, focal: float) -> float:
-    """Median over frames and people of a of the best-matching person of b's median
-    joint distance from the epipolar lines (pixels). xa (S, Qa, J, 2), xb (S, Qb, J, 2),
-    normalised coordinates; E maps a to lines in b."""
-    ha = np.concatenate([xa, np.ones(xa.shape[:-1] + (1,))], -1)
-    hb = np.concatenate([xb, np.ones(xb.shape[:-1] + (1,))], -1)
-    la = np.einsum("ij,...j->...i", E, ha)  # lines in b, (S, Qa, J, 3)
-    lb = np.einsum("ji,...j->...i", E, hb)  # lines in a, (S, Qb, J, 3)
-    num = np.abs(np.einsum("sajk,sbjk->sabj", la, hb))  # (S, Qa, Qb, J)
-    da = num / np.linalg.norm(la[..., :2], axis=-1)[:, :, None]
-    db = num / np.linalg.norm(lb[..., :2], axis=-1)[:, None]
-    d = np.minimum(0.5 * (da + db) * focal, EPIPOLAR_CAP)
-    with _quiet():
-        per_pair = np.nanmedian(d, axis=-1)  # (S, Qa, Qb)
-        best = np.nanmin(per_pair, axis=-1)  # (S, Qa)
-    best = best[np.isfinite(best)]
-    return float(np.mean(best)) if len(best) >= MIN_OVERLAP else np.nan
-
-
 def _essential(rig, a: int, b: int) -> np.ndarray:
     """E with x_b^T E x_a = 0 for normalised points of cameras a and b."""
     Ra, ta, Rb, tb = rig[a].R, rig[a].t, rig[b].R, rig[b].t
@@ -413,132 +388,6 @@ def _essential(rig, a: int, b: int) -> np.ndarray:
     t = tb - R @ ta
     tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
     return tx @ R
-
-
-def fine_offsets(
-    tracks: list[np.ndarray], fps: np.ndarray, offsets: np.ndarray, rig, sweeps: int = 1
-) -> tuple[np.ndarray, np.ndarray]:
-    """Sub-frame offsets (seconds, (V,)) minimising the views' epipolar disagreement,
-    each searched within :data:`FINE_HALF_WIDTH` frames of ``offsets``; and the
-    disagreement at the answer (pixels, (V,))."""
-    V = len(tracks)
-    norm = [_normalised(tr, rig[v]) for v, tr in enumerate(tracks)]
-    focal = [float(np.mean(np.diag(rig[v].K)[:2])) for v in range(V)]
-    E = {(a, b): _essential(rig, a, b) for a in range(V) for b in range(V) if a != b}
-    rate = float(fps[0])
-    times = np.arange(len(tracks[0])) / rate  # the reference's samples
-    off = np.asarray(offsets, float).copy()
-    resid = np.full(V, np.nan)
-
-    def cost(v: int, o: float, others: np.ndarray) -> float:
-        xv = _sample(norm[v], (times + o) * fps[v])
-        total = []
-        for w in range(V):
-            if w != v:
-                xw = _sample(norm[w], (times + others[w]) * fps[w])
-                total.append(_epipolar_cost(xv, xw, E[(v, w)], focal[w]))
-        return float(np.nanmean(total)) if np.isfinite(total).any() else np.nan
-
-    steps = np.arange(-FINE_HALF_WIDTH, FINE_HALF_WIDTH + 1e-9, FINE_STEP)
-    for _ in range(sweeps):
-        for v in range(1, V):
-            cand = off[v] + steps / fps[v]
-            c = np.array([cost(v, o, off) for o in cand])
-            if not np.isfinite(c).any():
-                continue
-            k = int(np.nanargmin(c))
-            off[v] = _parabola(cand, c, k)
-            resid[v] = c[k]
-    resid[0] = np.nanmean([cost(0, 0.0, off)])
-    return off, resid
-
-
-def _parabola(x: np.ndarray, y: np.ndarray, k: int) -> float:
-    if 0 < k < len(x) - 1 and np.isfinite(y[k - 1 : k + 2]).all():
-        den = y[k - 1] - 2 * y[k] + y[k + 1]
-        if den > 0:
-            return float(x[k] + 0.5 * (y[k - 1] - y[k + 1]) / den * (x[1] - x[0]))
-    return float(x[k])
-
-
-def scan_offsets(
-    tracks: list[np.ndarray], fps: np.ndarray, rig, max_offset: float, views, source=None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Whole-frame offsets (seconds, (V,)) at which every view's people agree best with
-    the other views' (epipolar distance, :func:`fine_offsets`'s measure), searched over
-    every lag up to ``max_offset`` seconds; and each camera's confidence, 1 - its best
-    disagreement over the best one at least :data:`PEAK_WIDTH` seconds away.
-
-    Cameras are placed one by one, each against those placed before (the one that agrees
-    most clearly first), then each again against all the others.
-
-    Raises:
-        InputError: a camera whose best lag is not clearly better than the others.
-    """
-    V = len(tracks)
-    norm = [_normalised(tr, rig[v]) for v, tr in enumerate(tracks)]
-    focal = [float(np.mean(np.diag(rig[v].K)[:2])) for v in range(V)]
-    times = np.arange(len(tracks[0])) / fps[0]
-    off, conf = np.zeros(V), np.ones(V)
-
-    def place(v: int, others: list[int]) -> tuple[float, float]:
-        lags = np.arange(-np.ceil(max_offset * fps[v]), np.ceil(max_offset * fps[v]) + 1)
-        ref = [_sample(norm[w], (times + off[w]) * fps[w]) for w in others]
-        c = np.full(len(lags), np.nan)
-        for k, L in enumerate(lags):
-            xv = _sample(norm[v], times * fps[v] + L)
-            d = [_epipolar_cost(xv, xw, _essential(rig, v, w), focal[w])
-                 for w, xw in zip(others, ref, strict=True)]  # fmt: skip
-            c[k] = np.nanmean(d) if np.isfinite(d).any() else np.nan
-        return _decide(c, lags, fps[v], views[v], source)
-
-    placed, pending = [0], list(range(1, V))
-    while pending:  # the camera that agrees most clearly with those placed goes next
-        tries = {}
-        for v in pending:
-            try:
-                tries[v] = place(v, placed)
-            except InputError as e:
-                tries[v] = e
-        good = {v: r for v, r in tries.items() if not isinstance(r, InputError)}
-        if not good:
-            raise next(iter(tries.values()))
-        v = max(good, key=lambda u: good[u][1])
-        off[v], conf[v] = good[v]
-        placed.append(v)
-        pending.remove(v)
-    for v in range(1, V):  # again, against every other camera
-        off[v], conf[v] = place(v, [w for w in range(V) if w != v])
-    return off, conf
-
-
-def _decide(c: np.ndarray, lags: np.ndarray, fps: float, name: str, source) -> tuple[float, float]:
-    """The lag of least disagreement (seconds) and its confidence, the prominence of its
-    valley: how much higher the next valley (a local minimum :data:`PEAK_WIDTH` seconds
-    away or more) is, as a fraction of the curve's median above the best. Refused when
-    below :data:`MIN_PROMINENCE`, or when the curve is flat (a static scene)."""
-    if not np.isfinite(c).any():
-        raise InputError(source, f"view {name}", f"people seen together with the other "
-                         f"views in at least {MIN_OVERLAP} frames at some offset")  # fmt: skip
-    w = max(2, int(round(PEAK_WIDTH * fps)))
-    k = int(np.nanargmin(c))
-    filled = np.where(np.isfinite(c), c, np.inf)
-    local = [i for i in range(len(c)) if np.isfinite(c[i])
-             and c[i] <= filled[max(0, i - w) : i + w + 1].min()]  # fmt: skip
-    others = [c[i] for i in local if abs(i - k) > w]
-    depth = float(np.nanmedian(c) - c[k])
-    second = min(others) if others else float(np.nanmax(c))
-    prominence = (second - c[k]) / depth if depth > 0 else 0.0
-    if depth < MIN_DEPTH or prominence < MIN_PROMINENCE:
-        raise InputError(
-            source,
-            f"view {name}",
-            "enough motion to decide its time offset (a valley of disagreement at least "
-            f"{MIN_DEPTH} px deep, the next valley {MIN_PROMINENCE:.2f} of that higher)",
-            f"{c[k]:.1f} px at {int(lags[k])} frames, {depth:.1f} px under the median, the "
-            f"next valley {second - c[k]:.1f} px higher",
-        )
-    return float(lags[k] / fps), float(min(1.0, prominence))
 
 
 # --------------------------------------------------------------------------- the whole
@@ -573,17 +422,17 @@ def find_sync(
     V = kp.shape[1]
     fps = np.broadcast_to(np.asarray(fps, float), (V,)).copy()
     _check(kp, fps, views, rig, source)
-    tracks = [link_people(kp[:, v]) for v in range(V)]
     if rig is None:
+        tracks = [link_people(kp[:, v]) for v in range(V)]
         speeds = [_trim(motion_speed(tr, f)) for tr, f in zip(tracks, fps, strict=True)]
         offsets, conf = coarse_offsets(speeds, fps, views, max_offset, source)
         offsets = np.round(offsets * fps) / fps  # whole frames of each camera
         return Sync(list(views), fps, offsets, conf, "motion")
-    offsets, conf = scan_offsets(tracks, fps, rig, max_offset, views, source)
-    if not fine:
-        return Sync(list(views), fps, offsets, conf, "3d")
-    off, resid = fine_offsets(tracks, fps, offsets, rig)
-    return Sync(list(views), fps, off - off[0], conf, "3d-fine", resid)
+    from rmpl.calibration.sync_3d import agreement_offsets
+
+    off, conf, resid, err = agreement_offsets(kp, fps, rig, max_offset, list(views), source,
+                                              fine)  # fmt: skip
+    return Sync(list(views), fps, off - off[0], conf, "3d-fine" if fine else "3d", resid, err)
 
 
 def _trim(speed: np.ndarray) -> np.ndarray:

@@ -1,9 +1,11 @@
 """Find each camera's time offset from the motion of the people in view; writes sync.json.
 
-With --calib, the offsets are those at which the views' people agree best in 3D (every
-whole-frame lag up to --max-offset seconds, then a fraction of a frame); without, from the
-cross-correlation of the views' 2D motion speeds (whole frames). A recording whose motion
-does not decide is refused in one line. The first view is the reference (offset 0).
+With --calib, the offsets are those at which the views' people agree best through the
+cameras, every camera solved jointly against every other over every whole-frame lag up to
+--max-offset seconds, then to a fraction of a frame; without, from the cross-correlation of
+the views' 2D motion speeds (whole frames). A recording whose motion does not decide (an
+offset not better than the others by three standard errors) is refused in one line. The
+first view is the reference (offset 0).
 
 Example: rmpl sync --calib calib.toml --keypoints pose/ --out sync.json
          rmpl run --calib calib.toml --keypoints pose/ --sync sync.json --out run/
@@ -81,7 +83,12 @@ def run(args: argparse.Namespace) -> int:
                      fine=not args.coarse)  # fmt: skip
     path = write_sync(sync, args.out)
     for name, cam in sync.to_dict()["cameras"].items():
-        log.info("%s: %s frames (%.3f s), confidence %.2f", name, cam["offset_frames"],
-                 cam["offset_seconds"], cam["confidence"])  # fmt: skip
+        err = cam["uncertainty_frames"]
+        log.info("%s: %s frames (%.3f s), confidence %.2f%s", name, cam["offset_frames"],
+                 cam["offset_seconds"], cam["confidence"],
+                 "" if err is None else f", +/- {err:.2f} frames")  # fmt: skip
+        if err is not None and err >= 0.5:
+            log.warning("%s: the whole frame is uncertain (standard error %.2f frames): "
+                        "a longer stretch with more motion decides it", name, err)  # fmt: skip
     log.info("wrote %s (%s)", path, sync.method)
     return 0
