@@ -149,3 +149,17 @@ def test_run_applies_a_sync_file_and_reports_it(tmp_path):
     report = json.loads((tmp_path / "run" / "report.json").read_text())
     assert report["sync"]["cameras"]["cam1"]["offset_frames"] == 4
     assert "Synchronisation" in (tmp_path / "run" / "report.md").read_text()
+
+
+def test_a_sync_file_named_like_the_2d_files_applies_by_order():
+    from rmpl.io.keypoints import Keypoints2D
+
+    offsets = np.array([0.0, 5 / 30, -3.5 / 25])
+    kp, rig = _recording(offsets)
+    sync = Sync(["cam01", "cam02", "cam03"], FPS, offsets, np.ones(3))  # the 2D files' names
+    kp2d = Keypoints2D(kp, np.isfinite(kp[..., 0]) * 0.9, "coco17", rig.names, None, 30.0)
+    by_order = apply_sync(kp2d, sync)
+    by_name = apply_sync(kp2d, Sync(rig.names, FPS, offsets, np.ones(3)))
+    assert np.array_equal(by_order.keypoints, by_name.keypoints, equal_nan=True)
+    with pytest.raises(InputError, match="views named like the cameras"):
+        apply_sync(kp2d, Sync(["cam01", "cam02"], FPS[:2], offsets[:2], np.ones(2)))

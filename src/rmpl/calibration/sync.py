@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -521,6 +521,12 @@ def apply_sync(keypoints2d, sync: Sync, source=None):
 
     kp = keypoints2d
     missing = [v for v in kp.views if v not in sync.views]
+    if missing and not set(kp.views) & set(sync.views) and len(kp.views) == len(sync.views):
+        # one named like the 2D files, the other like the calibration: by order, as the
+        # run pairs the views with the cameras
+        log.info("sync file's cameras %s taken for the views %s, by order", sync.views, kp.views)
+        sync = replace(sync, views=list(kp.views))
+        missing = []
     if missing:
         raise InputError(source, "views", f"views named like the cameras of the sync file "
                          f"{sync.views}", missing)  # fmt: skip
@@ -572,7 +578,6 @@ def synced_inputs(inputs, sync: str | None, source=None):
         The inputs with the 2D shifted / interpolated (:func:`apply_sync`) and ``sync``
         set to the offsets used (``sync.json``'s document, for the run report).
     """
-    from dataclasses import replace
 
     from rmpl.io.keypoints import Keypoints2D
 
