@@ -163,3 +163,10 @@ def test_a_sync_file_named_like_the_2d_files_applies_by_order():
     assert np.array_equal(by_order.keypoints, by_name.keypoints, equal_nan=True)
     with pytest.raises(InputError, match="views named like the cameras"):
         apply_sync(kp2d, Sync(["cam01", "cam02"], FPS[:2], offsets[:2], np.ones(2)))
+
+
+def test_without_a_calibration_chance_correlations_are_refused_not_guessed():
+    offsets = np.array([0.0, 12 / 30, -9 / 25])
+    short, rig = _recording(offsets, n=40)  # a second and a half of smooth motion
+    with pytest.raises(InputError, match="standard errors"):
+        find_sync(short, FPS, rig.names, None, max_offset=1.0)

@@ -60,8 +60,12 @@ MIN_PEAK = 0.3
 MIN_MARGIN = 0.1
 #: The peak's neighbourhood, seconds (a broad peak of slow motion is one peak).
 PEAK_WIDTH = 0.2
-#: Fewest overlapping samples (of the common grid) a lag needs.
+#: Fewest overlapping samples (of the common grid) a lag needs, and the least share of the
+#: shorter view's samples (a short overlap correlates by chance).
 MIN_OVERLAP = 20
+MIN_OVERLAP_FRACTION = 0.5
+#: ... and the peak must beat the best other correlation by this many standard errors.
+MIN_Z = 3.0
 _FORMAT = "rmpl.sync"
 
 
@@ -242,33 +246,54 @@ def motion_speed(tracks: np.ndarray, fps: float, max_step: float = 0.5) -> np.nd
 # --------------------------------------------------------------------------- coarse
 
 
-def _ncc_curve(a: np.ndarray, b: np.ndarray, lags: np.ndarray) -> np.ndarray:
-    """Normalised correlation of a(t) with b(t + lag) over their overlap, per lag."""
-    out = np.full(len(lags), np.nan)
+def _ncc_curve(a: np.ndarray, b: np.ndarray, lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised correlation of a(t) with b(t + lag) over their overlap, per lag, and its
+    standard error: 1 / sqrt of the overlap's effective samples (two AR(1) signals:
+    n (1 - ra rb) / (1 + ra rb), ra and rb their lag-one autocorrelations). Lags whose
+    overlap is under :data:`MIN_OVERLAP_FRACTION` of the shorter signal are NaN."""
+    out, se = np.full(len(lags), np.nan), np.full(len(lags), np.nan)
     n = len(a)
+    shorter = min(np.isfinite(a).sum(), np.isfinite(b).sum())
+    need = max(MIN_OVERLAP, int(np.ceil(MIN_OVERLAP_FRACTION * shorter)))
     for i, L in enumerate(lags):
         lo, hi = max(0, -L), min(n, len(b) - L)
-        if hi - lo < MIN_OVERLAP:
+        if hi - lo < need:
             continue
         x, y = a[lo:hi], b[lo + L : hi + L]
         ok = np.isfinite(x) & np.isfinite(y)
-        if ok.sum() < MIN_OVERLAP:
+        if ok.sum() < need:
             continue
         x, y = x[ok] - x[ok].mean(), y[ok] - y[ok].mean()
         den = np.sqrt((x * x).sum() * (y * y).sum())
-        out[i] = (x * y).sum() / den if den > 0 else np.nan
-    return out
+        if den > 0:
+            out[i] = (x * y).sum() / den
+            rr = _lag_one(x) * _lag_one(y)
+            se[i] = 1.0 / np.sqrt(max(ok.sum() * (1 - rr) / (1 + rr), 1.0))
+    return out, se
 
 
-def _peak(curve: np.ndarray, lags: np.ndarray, width: int) -> tuple[int, float, float]:
-    """(lag, peak, margin above the best correlation outside ``width`` samples)."""
+def _lag_one(x: np.ndarray) -> float:
+    den = float((x * x).sum())
+    return min(max(float((x[1:] * x[:-1]).sum()) / den, 0.0), 0.99) if den > 0 else 0.0
+
+
+def _peak(curve: np.ndarray, se: np.ndarray, lags: np.ndarray, width: int):
+    """(lag, peak, margin above the best other local maximum more than ``width`` samples
+    away, and that margin in standard errors)."""
     if not np.isfinite(curve).any():
-        return 0, float("nan"), 0.0
+        return 0, float("nan"), 0.0, 0.0
     i = int(np.nanargmax(curve))
     far = np.abs(lags - lags[i]) > width
-    rest = curve[far & np.isfinite(curve)]
-    second = float(rest.max()) if len(rest) else -1.0
-    return int(lags[i]), float(curve[i]), float(curve[i] - max(second, 0.0))
+    c = np.where(np.isfinite(curve), curve, -np.inf)
+    left, right = np.r_[-np.inf, c[:-1]], np.r_[c[1:], -np.inf]
+    other_peak = (c >= left) & (c >= right)  # local maxima (the ends included): not the
+    rest = np.flatnonzero(far & other_peak & np.isfinite(curve))  # peak's own shoulders
+    if not len(rest):
+        return int(lags[i]), float(curve[i]), float(curve[i]), 0.0
+    k = rest[np.argmax(curve[rest])]
+    margin = float(curve[i] - max(curve[k], 0.0))
+    z = float((curve[i] - curve[k]) / np.hypot(se[i], se[k]))
+    return int(lags[i]), float(curve[i]), margin, z
 
 
 def _on_grid(speed: np.ndarray, fps: float, rate: float, length: float) -> np.ndarray:
@@ -297,10 +322,10 @@ def coarse_offsets(
     pairs = []  # (i, j, lag, peak): b's clock ahead of a's by lag
     for i in range(V):
         for j in range(i + 1, V):
-            lag, peak, margin = _peak(_ncc_curve(grid[i], grid[j], lags), lags, width)
-            log.debug("sync %s-%s: lag %d, peak %.3f, margin %.3f", views[i], views[j], lag,
-                      peak, margin)  # fmt: skip
-            if peak >= MIN_PEAK and margin >= MIN_MARGIN:
+            lag, peak, margin, z = _peak(*_ncc_curve(grid[i], grid[j], lags), lags, width)
+            log.debug("sync %s-%s: lag %d, peak %.3f, margin %.3f, z %.1f", views[i], views[j],
+                      lag, peak, margin, z)  # fmt: skip
+            if peak >= MIN_PEAK and margin >= MIN_MARGIN and z >= MIN_Z:
                 pairs.append((i, j, lag, peak))
     offsets = _solve_pairs(pairs, V, views, source)
     conf = np.ones(V)
@@ -321,7 +346,9 @@ def _solve_pairs(pairs, V: int, views: list[str], source) -> np.ndarray:
             source,
             "motion",
             "enough motion of the people seen by every camera to decide its offset "
-            f"(a correlation peak >= {MIN_PEAK:.2f} standing {MIN_MARGIN:.2f} above the rest)",
+            f"(a correlation peak >= {MIN_PEAK:.2f} standing {MIN_MARGIN:.2f} and {MIN_Z:g} "
+            "standard errors above the rest, over at least half the recording; a calibration "
+            "(--calib) decides from the views' agreement instead)",
             f"no decision for camera(s) {missing}",
         )
     for _ in range(V * V):
