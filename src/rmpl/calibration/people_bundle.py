@@ -378,7 +378,7 @@ def centre_covariance(result: BundleResult, num_lengths: int) -> np.ndarray:
     Hpc = Jp.T @ Jc
     Hpp = (Jp.T @ Jp).tocsc()
     Hpp = Hpp + 1e-9 * _eye(Hpp.shape[0])
-    S = Hcc - Hpc.T @ splu(Hpp).solve(Hpc)
+    S = Hcc - Hpc.T @ splu(Hpp, permc_spec="MMD_AT_PLUS_A").solve(Hpc)  # Hpp symmetric
     cov = np.linalg.pinv(S) * result.sigma**2
     V = len(result.R)
     out = np.zeros((V, 3, 3))
