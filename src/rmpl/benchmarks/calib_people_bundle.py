@@ -17,6 +17,8 @@ start and at the end of the adjustment.
 (moved by a similarity onto the start found from the people, so that the gauge and the
 scale stay those of the chain) with the points triangulated through them; where it settles
 tells whether the objective itself (associations, bones, loss) or the start is at fault.
+``--bones relative`` swaps the bone term for one that does not change with the scale
+(:data:`rmpl.calibration.people_bundle.BONE_TERM`).
 
 Example::
 
@@ -77,12 +79,13 @@ def _run(args) -> dict:
     logger.addHandler(rounds)
     logger.setLevel(logging.DEBUG)
     t0 = time.perf_counter()
-    with mock.patch.object(people_bundle, "adjust", adjust):
+    bones = mock.patch.object(people_bundle, "BONE_TERM", args.bones)
+    with mock.patch.object(people_bundle, "adjust", adjust), bones:
         cal = calibrate_from_people(keypoints, scores, truth, max_frames=args.max_frames)
     out = compare(cal.rig, truth)
     out |= {"rms_px": [round(float(r), 2) for r in cal.rms], "people": len(cal.people),
             "frames": len(cal.frames_used), "jacobian": args.jacobian,
-            "max_nfev": nfev, "start": args.start, "rounds": rounds.lines,
+            "max_nfev": nfev, "start": args.start, "bones": args.bones, "rounds": rounds.lines,
             "bones_over_rig": [round(float(v), 4) for v in size],
             "adjust_seconds": round(sum(spent), 1),
             "seconds": round(time.perf_counter() - t0, 1)}  # fmt: skip
@@ -129,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-nfev", type=int, help="evaluations per round (default: adjust's)")
     p.add_argument("--start", choices=("people", "truth"), default="people",
                    help="truth: start at the reference cameras (a diagnosis)")  # fmt: skip
+    p.add_argument("--bones", choices=("metres", "relative"), default="metres",
+                   help="the bone term (rmpl.calibration.people_bundle.BONE_TERM)")  # fmt: skip
     p.add_argument("--json", help="write the figures here")
     args = p.parse_args(argv)
     text = json.dumps(_run(args), indent=1)
