@@ -49,7 +49,9 @@ def _random_problem(rng, rvecs, num_points=12, obs_per_point=3):
     ids=["small", "large"],
 )
 @pytest.mark.parametrize("fixed", [0, 2])
-def test_jacobian_matches_central_differences(rvecs, fixed):
+@pytest.mark.parametrize("bones", ["metres", "relative"])
+def test_jacobian_matches_central_differences(rvecs, fixed, bones, monkeypatch):
+    monkeypatch.setattr(pb, "BONE_TERM", bones)
     rng = np.random.default_rng(11 + fixed)
     prob, R, t, X, lengths = _random_problem(rng, rvecs)
     V = len(R)
@@ -176,3 +178,11 @@ def test_one_blas_thread_limits_blas_inside_only():
     with pb.one_blas_thread():
         assert all(n == 1 for n in blas_threads())
     assert blas_threads() == before
+
+
+def test_the_relative_bone_term_does_not_change_with_the_scale(monkeypatch):
+    d, L = np.array([0.30, 0.42, 0.25]), np.array([0.31, 0.40, 0.25])
+    monkeypatch.setattr(pb, "BONE_TERM", "relative")
+    assert np.allclose(pb._bone_terms(3 * d, 3 * L)[0], pb._bone_terms(d, L)[0])
+    monkeypatch.setattr(pb, "BONE_TERM", "metres")
+    assert np.allclose(pb._bone_terms(3 * d, 3 * L)[0], 3 * pb._bone_terms(d, L)[0])

@@ -7,7 +7,8 @@ person's bone lengths (one per bone of :data:`BONES`), each 3D joint (3). Residu
 - reprojection, pixels: ``f * (x_normalised(projected) - x_normalised(observed))`` for every
   observation (a joint of a person in a view and frame);
 - bones, ``(|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA``: a bone differing by one
-  :data:`BONE_SIGMA` from its person's length weighs as a :data:`PIXEL_SIGMA` pixel error;
+  :data:`BONE_SIGMA` from its person's length weighs as a :data:`PIXEL_SIGMA` pixel error
+  (or, with :data:`BONE_TERM` "relative", by :data:`BONE_RELATIVE_SIGMA` of its length);
 - the gauge: one camera fixed (its pose is not a parameter) and the distance between it and
   a second camera held at its start value (the scale comes afterwards).
 
@@ -56,6 +57,11 @@ BONES = (
     (8, 10),
 )
 BONE_SIGMA = 0.02
+#: The bone term: "metres", ``(|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA``, or
+#: "relative", ``(|X_a - X_b| - L) / (BONE_RELATIVE_SIGMA * L) * PIXEL_SIGMA``, which does
+#: not change when the whole scene is scaled (the "metres" term falls as the people shrink).
+BONE_TERM = "metres"
+BONE_RELATIVE_SIGMA = 0.05  # 2 cm on a bone of 0.4 m
 PIXEL_SIGMA = 3.0
 #: Outlier thresholds of the successive rounds, pixels (the last round keeps the rest).
 ROUNDS = (40.0, 20.0, 10.0)
@@ -112,11 +118,22 @@ def _residuals(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge)
     proj = Xc[:, :2] / z[:, None]
     reproj = ((proj - prob.xy[mask]) * prob.focal[c][:, None]).ravel()
     a, b = prob.bones[:, 0], prob.bones[:, 1]
-    bone = (np.linalg.norm(X[a] - X[b], axis=-1) - lengths[prob.bone_length]) / BONE_SIGMA
+    bone = _bone_terms(np.linalg.norm(X[a] - X[b], axis=-1), lengths[prob.bone_length])[0]
     i, j, d0 = gauge
     Ci, Cj = -R[i].T @ t[i], -R[j].T @ t[j]
     g = GAUGE_WEIGHT * (np.linalg.norm(Ci - Cj) - d0)
-    return np.concatenate([reproj, bone * PIXEL_SIGMA, [g]])
+    return np.concatenate([reproj, bone, [g]])
+
+
+def _bone_terms(d: np.ndarray, L: np.ndarray):
+    """Each bone's residual (B,) from its length ``d`` and its person's ``L``, and the
+    residual's derivatives by ``d`` and by ``L`` (:data:`BONE_TERM`)."""
+    if BONE_TERM == "relative":
+        Lp = np.where(L > 1e-6, L, 1e-6)
+        w = PIXEL_SIGMA / (BONE_RELATIVE_SIGMA * Lp)
+        return (d - L) * w, w, -d * w / Lp
+    w = PIXEL_SIGMA / BONE_SIGMA
+    return (d - L) * w, np.full_like(d, w), np.full_like(d, -w)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -178,15 +195,16 @@ def _jacobian(x, prob: BundleProblem, mask, V, free, fixed, num_lengths, gauge):
     dY = -_skew(Y[has]) @ Jl[c[has]]  # (Mf, 3, 3) d(R X)/d(rotation vector)
     cam_vals = np.concatenate([D[has] @ dY, D[has]], -1)  # (Mf, 2, 6)
     blocks.append((rows2[has], 6 * col[c[has]][:, None] + np.arange(6), cam_vals))
-    # bones: (|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA
+    # bones: through their lengths |X_a - X_b|
     d = X[prob.bones[:, 0]] - X[prob.bones[:, 1]]
     n = np.linalg.norm(d, axis=-1, keepdims=True)
-    u = np.where(n > 0, d / np.where(n > 0, n, 1.0), 0.0) * (PIXEL_SIGMA / BONE_SIGMA)
+    _, by_d, by_L = _bone_terms(n[:, 0], lengths[prob.bone_length])
+    u = np.where(n > 0, d / np.where(n > 0, n, 1.0), 0.0) * by_d[:, None]
     br = (2 * M + np.arange(B))[:, None]
     blocks += [
         (br, off + 3 * prob.bones[:, :1] + np.arange(3), u[:, None]),
         (br, off + 3 * prob.bones[:, 1:] + np.arange(3), -u[:, None]),
-        (br, nc + prob.bone_length[:, None], np.full((B, 1, 1), -PIXEL_SIGMA / BONE_SIGMA)),
+        (br, nc + prob.bone_length[:, None], by_L[:, None, None]),
     ]
     blocks += _gauge_blocks(R, t, col, Jl, gauge, 2 * M + B)
     return _assemble(blocks, (2 * M + B + 1, off + 3 * len(X)))
@@ -378,7 +396,7 @@ def centre_covariance(result: BundleResult, num_lengths: int) -> np.ndarray:
     Hpc = Jp.T @ Jc
     Hpp = (Jp.T @ Jp).tocsc()
     Hpp = Hpp + 1e-9 * _eye(Hpp.shape[0])
-    S = Hcc - Hpc.T @ splu(Hpp).solve(Hpc)
+    S = Hcc - Hpc.T @ splu(Hpp, permc_spec="MMD_AT_PLUS_A").solve(Hpc)  # Hpp symmetric
     cov = np.linalg.pinv(S) * result.sigma**2
     V = len(result.R)
     out = np.zeros((V, 3, 3))
