@@ -6,16 +6,20 @@ person's bone lengths (one per bone of :data:`BONES`), each 3D joint (3). Residu
 
 - reprojection, pixels: ``f * (x_normalised(projected) - x_normalised(observed))`` for every
   observation (a joint of a person in a view and frame);
-- bones, ``(|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA``: a bone differing by one
-  :data:`BONE_SIGMA` from its person's length weighs as a :data:`PIXEL_SIGMA` pixel error
-  (or, with :data:`BONE_TERM` "relative", by :data:`BONE_RELATIVE_SIGMA` of its length);
+- bones, ``(|X_a - X_b| - L) / (BONE_RELATIVE_SIGMA * L) * PIXEL_SIGMA``: a bone
+  differing by :data:`BONE_RELATIVE_SIGMA` of its person's length weighs as a
+  :data:`PIXEL_SIGMA` pixel error. The term does not change when the whole scene is scaled
+  (:data:`BONE_TERM` "metres", by :data:`BONE_SIGMA` metres, falls as the people shrink
+  against the rig, and a converged adjustment drifts that way);
 - the gauge: one camera fixed (its pose is not a parameter) and the distance between it and
   a second camera held at its start value (the scale comes afterwards).
 
 SciPy's ``least_squares`` (trust region, LSMR) gets the analytic sparse Jacobian
 (:func:`_jacobian`; a rotation's derivative through the left Jacobian of SO(3)); the
 loss is ``soft_l1`` with a scale of :data:`PIXEL_SIGMA`; observations further than a
-threshold that tightens over the rounds (:data:`ROUNDS`) are dropped between rounds.
+threshold that tightens over the rounds (:data:`ROUNDS`) are dropped between rounds. Each
+round runs to convergence (up to 300 evaluations): stopping early left the cameras where
+rounding happened to stop them.
 
 Shape glossary: ``M`` observations, ``N`` 3D points, ``V`` cameras, ``G`` people.
 """
@@ -60,7 +64,7 @@ BONE_SIGMA = 0.02
 #: The bone term: "metres", ``(|X_a - X_b| - L) / BONE_SIGMA * PIXEL_SIGMA``, or
 #: "relative", ``(|X_a - X_b| - L) / (BONE_RELATIVE_SIGMA * L) * PIXEL_SIGMA``, which does
 #: not change when the whole scene is scaled (the "metres" term falls as the people shrink).
-BONE_TERM = "metres"
+BONE_TERM = "relative"
 BONE_RELATIVE_SIGMA = 0.05  # 2 cm on a bone of 0.4 m
 PIXEL_SIGMA = 3.0
 #: Outlier thresholds of the successive rounds, pixels (the last round keeps the rest).
@@ -280,7 +284,7 @@ def adjust(
     fixed: int,
     gauge_cam: int,
     rounds: tuple[float, ...] = ROUNDS,
-    max_nfev: int = 60,
+    max_nfev: int = 300,
 ) -> BundleResult:
     """Adjust cameras, bone lengths and points; ``fixed`` camera's pose stays, the distance
     from it to ``gauge_cam`` too. Returns the solution after the last round."""
