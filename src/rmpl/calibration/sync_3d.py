@@ -84,7 +84,7 @@ class _Curve:
 
     def centred(self) -> np.ndarray:
         """Each frame relative to its own median over the offsets, (N, S)."""
-        from rmpl.calibration.sync import _quiet
+        from rmpl.calibration.sync_base import _quiet
 
         with _quiet():
             return self.frames - np.nanmedian(self.frames, axis=0)
@@ -93,7 +93,7 @@ class _Curve:
         """Mean disagreement per offset, (N,), each frame of a and each frame of b taken
         relative to its own median over the offsets (the two averaged); NaN where too few
         frames overlap."""
-        from rmpl.calibration.sync import _quiet
+        from rmpl.calibration.sync_base import _quiet
 
         a = self.centred()
         b = np.full((len(self.deltas), int(self.bframe.max()) + 2), np.nan)
@@ -107,7 +107,7 @@ class _Curve:
         return np.where(np.isfinite(a).sum(-1) >= MIN_OVERLAP, y, np.nan)
 
     def raw(self, delta: float) -> float:
-        from rmpl.calibration.sync import _quiet
+        from rmpl.calibration.sync_base import _quiet
 
         k = int(np.argmin(np.abs(self.deltas - delta)))
         with _quiet():
@@ -115,7 +115,7 @@ class _Curve:
 
 
 def _views(keypoints: np.ndarray, fps: np.ndarray, rig) -> list[_View]:
-    from rmpl.calibration.sync import _normalised, link_index
+    from rmpl.calibration.sync_base import _normalised, link_index
 
     out = []
     for v in range(keypoints.shape[1]):
@@ -151,7 +151,7 @@ def _at(view: _View, frames: np.ndarray) -> np.ndarray:
 
 
 def _essential(rig, a: int, b: int) -> np.ndarray:
-    from rmpl.calibration.sync import _essential as ess
+    from rmpl.calibration.sync_base import _essential as ess
 
     return ess(rig, a, b)
 
@@ -193,7 +193,7 @@ def _frame_disagreement(dist: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> np.
     distance; with :data:`BIAS_FREE`, each joint's distance minus its mean over the frames
     of the same pair of tracks (``ta`` (S, Pa), ``tb`` (S, Pb)); the median over joints
     of the absolute (capped), the mean over people."""
-    from rmpl.calibration.sync import _quiet
+    from rmpl.calibration.sync_base import _quiet
 
     with _quiet():
         per = np.nanmedian(np.minimum(np.abs(dist), EPIPOLAR_CAP), -1)  # (S, Pa, Pb)
