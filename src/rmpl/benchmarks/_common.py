@@ -62,3 +62,13 @@ def run_commands(commands: Sequence[Sequence[str]], dry_run: bool = False) -> in
 def toml_string(text: str | Path) -> str:
     """``text`` as a TOML string for ``--set key=VALUE``: ``bank.npz`` -> ``"bank.npz"``."""
     return '"' + str(text) + '"'
+
+
+def emit_json(doc: dict, path: str | Path | None) -> None:
+    """Print a benchmark's figures as JSON, and write them to ``path`` when given."""
+    import json
+
+    text = json.dumps(doc, indent=1)
+    print(text)
+    if path:
+        Path(path).write_text(text + "\n", encoding="utf-8")

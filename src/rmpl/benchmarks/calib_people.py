@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import sys
 import time
 from pathlib import Path
@@ -104,6 +103,7 @@ def _inputs(args):
 
 
 def main(argv: list[str] | None = None) -> int:
+    from rmpl.benchmarks._common import emit_json
     from rmpl.calibration.people import calibrate_from_people
 
     p = argparse.ArgumentParser(prog="python -m rmpl.benchmarks.calib_people",
@@ -127,10 +127,7 @@ def main(argv: list[str] | None = None) -> int:
             "warnings": cal.warnings}  # fmt: skip
     if args.run and args.shelf:
         out["run"] = run_through(cal.rig, truth, Path(args.shelf), Path(args.run))
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text + "\n", encoding="utf-8")
+    emit_json(out, args.json)
     return 0
 
 

@@ -17,8 +17,8 @@ start and at the end of the adjustment.
 (moved by a similarity onto the start found from the people, so that the gauge and the
 scale stay those of the chain) with the points triangulated through them; where it settles
 tells whether the objective itself (associations, bones, loss) or the start is at fault.
-``--bones relative`` swaps the bone term for one that does not change with the scale
-(:data:`rmpl.calibration.people_bundle.BONE_TERM`).
+``--bones metres|relative`` picks the bone term (default: the package's,
+:data:`rmpl.calibration.people_bundle.BONE_TERM`; "relative" does not change with the scale).
 
 Example::
 
@@ -32,11 +32,9 @@ from __future__ import annotations
 
 import argparse
 import inspect
-import json
 import logging
 import sys
 import time
-from pathlib import Path
 from unittest import mock
 
 
@@ -79,7 +77,7 @@ def _run(args) -> dict:
     logger.addHandler(rounds)
     logger.setLevel(logging.DEBUG)
     t0 = time.perf_counter()
-    bones = mock.patch.object(people_bundle, "BONE_TERM", args.bones)
+    bones = mock.patch.object(people_bundle, "BONE_TERM", args.bones or people_bundle.BONE_TERM)
     with mock.patch.object(people_bundle, "adjust", adjust), bones:
         cal = calibrate_from_people(keypoints, scores, truth, max_frames=args.max_frames)
     out = compare(cal.rig, truth)
@@ -132,14 +130,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-nfev", type=int, help="evaluations per round (default: adjust's)")
     p.add_argument("--start", choices=("people", "truth"), default="people",
                    help="truth: start at the reference cameras (a diagnosis)")  # fmt: skip
-    p.add_argument("--bones", choices=("metres", "relative"), default="metres",
-                   help="the bone term (rmpl.calibration.people_bundle.BONE_TERM)")  # fmt: skip
+    p.add_argument("--bones", choices=("metres", "relative"), default=None,
+                   help="the bone term (default: people_bundle.BONE_TERM)")  # fmt: skip
     p.add_argument("--json", help="write the figures here")
     args = p.parse_args(argv)
-    text = json.dumps(_run(args), indent=1)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text + "\n", encoding="utf-8")
+    from rmpl.benchmarks._common import emit_json
+
+    emit_json(_run(args), args.json)
     return 0
 
 

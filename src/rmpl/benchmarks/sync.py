@@ -21,7 +21,6 @@ Example::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -153,6 +152,8 @@ def synthetic_trials(trials: int, max_seconds: float = 2.5, seed: int = 0) -> di
 
 
 def main(argv: list[str] | None = None) -> int:
+    from rmpl.benchmarks._common import emit_json
+
     p = argparse.ArgumentParser(prog="python -m rmpl.benchmarks.sync",
                                 description=__doc__.splitlines()[0])  # fmt: skip
     src = p.add_mutually_exclusive_group(required=True)
@@ -187,10 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         keypoints, rig, fps = _real(args)
         out = real_trials(keypoints, rig, fps, args.trials, args.max_shift, args.window)
-    text = json.dumps(out, indent=1)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text + "\n", encoding="utf-8")
+    emit_json(out, args.json)
     return 0
 
 
