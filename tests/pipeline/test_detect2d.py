@@ -93,6 +93,21 @@ def test_detect_videos_shapes_names_fps_and_resume(tmp_path):
     assert det.images == 12  # only that view ran again
 
 
+def test_videos_not_started_together_are_detected_whole(tmp_path, caplog):
+    """Cameras started at other instants or filming at other rates give videos of other
+    lengths: each is detected whole, the shorter ending in empty frames, with one warning
+    that points to rmpl sync."""
+    a = write_video(tmp_path / "a.mp4", _frames(6, 1), fps=30)
+    b = write_video(tmp_path / "b.mp4", _frames(4, 2), fps=25)
+    det = CountingDetector()
+    with caplog.at_level("WARNING"):
+        kp = detect_videos([a, b], det, progress=False)
+    assert kp.keypoints.shape[:2] == (6, 2) and det.images == 10
+    assert (kp.scores[:4, 1] > 0).all() and (kp.scores[4:, 1] == 0).all()
+    assert np.isnan(kp.keypoints[4:, 1]).all() and (kp.scores[:, 0] > 0).all()
+    assert "rmpl sync" in caplog.text and "b.mp4 4 frames at 25/s" in caplog.text
+
+
 def test_detect_images_natural_order(tmp_path):
     for v in range(2):
         d = tmp_path / f"cam{v}"
@@ -428,13 +443,14 @@ def test_a_view_with_nobody_is_named_and_nobody_anywhere_is_an_error(tmp_path, c
         detect_videos([empty, other], PeopleDetector(), progress=False)
 
 
-def test_videos_of_different_lengths_fail_before_a_multi_person_detector_runs(tmp_path):
+def test_videos_of_different_lengths_with_a_multi_person_detector(tmp_path):
+    """Every frame of each video is seen once; the shorter view ends in empty frames."""
     a = write_video(tmp_path / "a.mp4", _grey([90] * 5))
     short = write_video(tmp_path / "short.mp4", _grey([90] * 3))
     det = PeopleDetector()
-    with pytest.raises(InputError, match=r"short\.mp4.*5 frames.*got 3 frames"):
-        detect_videos([a, short], det, progress=False)
-    assert det.images == 0
+    kp = detect_videos([a, short], det, progress=False)
+    assert det.images == 8 and kp.keypoints.shape[:2] == (5, 2)
+    assert (kp.scores[3:, 1] == 0).all() and (kp.scores[:3, 1].max(-1) > 0).any()
 
 
 def test_a_detector_breaking_the_protocol_is_named(tmp_path):

@@ -113,6 +113,7 @@ def _load(args: argparse.Namespace):
         getattr(args, "keypoints", None),
         getattr(args, "videos", None),
         skeleton=getattr(args, "skeleton", None),
+        sync=getattr(args, "sync", None),
     )
     cache = Path(args.out).with_suffix(".keypoints2d.npz") if spec.videos else None
     inputs = load_inputs(spec, cache)

@@ -17,6 +17,7 @@ COMMANDS = {  # in the order of the user's chain, then the tools
     "sync": "rmpl.cli.sync",
     "run": "rmpl.cli.run",
     "batch": "rmpl.cli.batch",
+    "simulate": "rmpl.cli.simulate",
     "lift": "rmpl.cli.lift",
     "triangulate": "rmpl.cli.triangulate",
     "convert-calib": "rmpl.cli.convert_calib",

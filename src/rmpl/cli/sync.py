@@ -33,7 +33,8 @@ def register(parser: argparse.ArgumentParser) -> None:
         type=positive,
         nargs="+",
         default=None,
-        help="frame rate: one value, or one per view (cameras at different rates)",
+        help="frame rate: one value, or one per view (cameras at different rates); default: "
+        "each video's own, or the 2D file's",
     )
     parser.add_argument(
         "--max-offset", type=positive, default=3.0, help="largest offset searched, seconds"
@@ -56,7 +57,7 @@ def _load(args: argparse.Namespace):
             raise InputError(None, "--calib", "a calibration with --videos (to read them)")
         return load_keypoints(args.keypoints, skeleton=args.skeleton), None
     spec = InputSpec(args.calib, args.keypoints, args.videos, skeleton=args.skeleton,
-                     detector=args.detector)  # fmt: skip
+                     detector=args.detector, sync="find")  # fmt: skip
     cache = Path(args.out).with_suffix(".keypoints2d.npz") if args.videos else None
     inp = load_inputs(spec, cache)
     kp = Keypoints2D(inp.keypoints, inp.scores, inp.skeleton, inp.rig.names, inp.frames, inp.fps)
@@ -64,8 +65,17 @@ def _load(args: argparse.Namespace):
 
 
 def _fps(args: argparse.Namespace, kp) -> list[float]:
+    """--fps, else each video's own frame rate, else the 2D file's."""
     from rmpl.errors import InputError
 
+    if not args.fps and args.videos:
+        from rmpl.pipeline.detect2d import probe_video, view_names
+
+        rates = {n: probe_video(v).fps for n, v in zip(view_names(args.videos), args.videos,
+                                                      strict=True)}  # fmt: skip
+        if set(kp.views) <= set(rates):
+            return [rates[n] for n in kp.views]
+        return [probe_video(v).fps for v in args.videos]  # matched by order
     fps = args.fps or ([kp.fps] if kp.fps else None)
     if not fps:
         raise InputError(None, "--fps", "the frame rate (the 2D input states none)")

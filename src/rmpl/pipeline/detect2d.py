@@ -191,8 +191,11 @@ def probe_video(path: str | Path) -> VideoInfo:
     return VideoInfo(path, count, fps, (int(w), int(h)))
 
 
-def check_videos(paths: Sequence[str | Path]) -> list[VideoInfo]:
-    """Probe every video and check they are synchronised: same frame count and frame rate.
+def check_videos(paths: Sequence[str | Path], synchronised: bool = True) -> list[VideoInfo]:
+    """Probe every video; with ``synchronised``, check they have the same frame count and
+    frame rate. Without, videos of different lengths or rates (cameras not started
+    together, phones at other rates) are accepted with one warning: ``rmpl sync`` finds
+    their offsets and ``rmpl run --sync`` puts them on one clock.
 
     Raises:
         InputError: naming the offending file, with both counts or both rates.
@@ -202,21 +205,35 @@ def check_videos(paths: Sequence[str | Path]) -> list[VideoInfo]:
     infos = [probe_video(p) for p in paths]
     first = infos[0]
     for info in infos[1:]:
-        if info.num_frames != first.num_frames:
+        if info.num_frames != first.num_frames and synchronised:
             raise InputError(
                 info.path,
                 "frames",
                 f"{first.num_frames} frames like {first.path} (synchronised videos)",
                 f"{info.num_frames} frames",
             )
-        if abs(info.fps - first.fps) > 1e-3 * first.fps:
+        if abs(info.fps - first.fps) > 1e-3 * first.fps and synchronised:
             raise InputError(
                 info.path,
                 "fps",
                 f"{first.fps:g} frames/s like {first.path} (synchronised videos)",
                 f"{info.fps:g} frames/s",
             )
+    if not synchronised and not _same_clock(infos):
+        log.warning(
+            "the videos differ in length or frame rate (%s): they were not started together "
+            "or not filmed at one rate; put them on one clock with rmpl sync and --sync",
+            ", ".join(f"{i.path.name} {i.num_frames} frames at {i.fps:g}/s" for i in infos),
+        )
     return infos
+
+
+def _same_clock(infos: list[VideoInfo]) -> bool:
+    first = infos[0]
+    return all(
+        i.num_frames == first.num_frames and abs(i.fps - first.fps) <= 1e-3 * first.fps
+        for i in infos
+    )
 
 
 def _natural_key(path: Path) -> tuple:
@@ -445,7 +462,7 @@ def _detect_views(
     names: list[str],
     sources: Sequence[str | Path],
     fingerprint: list,
-    num_frames: int,
+    num_frames: int | list[int],
     frames_of: Callable[[int], Iterator[np.ndarray]],
     detector,
     batch: int,
@@ -454,7 +471,11 @@ def _detect_views(
     workers: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Detect every view (or reuse its cache): (T, V, P, J, 2), (T, V, P, J), and the joint
-    set's name. With ``workers`` > 1 the views to detect run in parallel on Ray."""
+    set's name; ``num_frames`` is one count or one per view (T is the largest: a shorter
+    view ends in empty frames). With ``workers`` > 1 the views to detect run in parallel on
+    Ray."""
+    if isinstance(num_frames, int):
+        num_frames = [num_frames] * len(names)
     kps: list = [None] * len(names)
     scs: list = [None] * len(names)
     todo = []
@@ -467,7 +488,7 @@ def _detect_views(
                 "view %s: reusing COCO-17 detections from %s (made before the detectors "
                 "gave feet); delete it to detect the heels too", name, cache,
             )  # fmt: skip
-        if hit is not None and hit[0].shape[0] == num_frames:
+        if hit is not None and hit[0].shape[0] == num_frames[v]:
             log.info("view %s: reusing detections from %s", name, cache)
             kps[v], scs[v] = hit
         else:
@@ -498,7 +519,7 @@ def _detect_here(todo, names, num_frames, frames_of, detector, batch, progress, 
             if det is None:
                 det, owned = _make_detector(detector)
             yield _detect_stream(
-                frames_of(v), num_frames, det, batch, f"detect {names[v]}", progress
+                frames_of(v), num_frames[v], det, batch, f"detect {names[v]}", progress
             )
     finally:
         if owned:
@@ -531,7 +552,7 @@ def _detect_on_ray(todo, names, num_frames, frames_of, detector, batch, progress
         ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False)
     task = ray.remote(num_cpus=1)(_detect_one_view)
     name = detector or DEFAULT_DETECTOR
-    refs = [task.remote(frames_of, v, num_frames, name, batch) for v, _, _ in todo]
+    refs = [task.remote(frames_of, v, num_frames[v], name, batch) for v, _, _ in todo]
     with tqdm(total=len(refs), desc="detect views", unit="view", disable=not progress) as bar:
         for ref in refs:  # in order, each saved to the cache as soon as it is back
             result = ray.get(ref)
@@ -561,6 +582,9 @@ def _stack_views(
         )
     # Slots past the last one used in any frame of any view are dropped.
     P = max(1, *(int(np.flatnonzero(used.any(axis=0)).max(initial=-1)) + 1 for used in seen))
+    T = max(len(k) for k in kps)  # a shorter view (videos not started together) ends empty
+    kps = [np.concatenate([k, np.full((T - len(k), *k.shape[1:]), np.nan)]) for k in kps]
+    scs = [np.concatenate([s, np.zeros((T - len(s), *s.shape[1:]))]) for s in scs]
     kp = np.stack([_pad_people(k, max(P, k.shape[1]))[:, :P] for k in kps], axis=1)
     sc = np.stack([_pad_people(s, max(P, s.shape[1]))[:, :P] for s in scs], axis=1)
     return kp, sc
@@ -600,14 +624,14 @@ def detect_videos(
         InputError: bad input (see the module docstring), before any detection runs; or
             nobody found in any frame of any video.
     """
-    infos = check_videos(paths)
+    infos = check_videos(paths, synchronised=False)
     names = view_names(paths)
-    T = infos[0].num_frames
+    T = max(i.num_frames for i in infos)
     kp, sc, skeleton = _detect_views(
         names,
         paths,
         input_fingerprint(paths, "videos"),
-        T,
+        [i.num_frames for i in infos],
         lambda v: video_frames(infos[v]),
         detector,
         batch,

@@ -33,7 +33,9 @@ class InputSpec:
     """What to read: ``calib`` and one of ``keypoints`` (files or folders), ``videos`` or
     ``images`` (one per camera); ``fps`` if the input states none; ``skeleton`` when the 2D
     joint set is ambiguous; ``detector`` for videos and images, ``detect_workers`` of them
-    detected at once (Ray tasks above 1; the same result)."""
+    detected at once (Ray tasks above 1; the same result); ``sync``: how the videos will be
+    put on one clock (``--sync``), None when they are taken as synchronised (then videos of
+    different lengths or rates are refused)."""
 
     calib: str
     keypoints: list[str] | None = None
@@ -43,6 +45,7 @@ class InputSpec:
     skeleton: str | None = None
     detector: str | None = None
     detect_workers: int | None = None
+    sync: str | None = None
 
     @classmethod
     def from_args(cls, args) -> InputSpec:
@@ -156,7 +159,7 @@ def _check_detection_inputs(spec, kind: str, sources: list[str], detector: str) 
     )
 
     if kind == "videos":
-        check_videos(sources)
+        check_videos(sources, synchronised=spec.sync is None)
     else:
         check_image_folders(sources)
     rig = load_rig(spec.calib)

@@ -199,6 +199,7 @@ def write_overlays(
 
     from rmpl.pipeline.detect2d import (
         _cv2,
+        _same_clock,
         check_image_folders,
         check_videos,
         image_frames,
@@ -215,7 +216,10 @@ def write_overlays(
     skeleton = SKELETONS[poses.skeleton]  # the 3D's bones (COCO-17, or HALPE-26 with feet)
     skeleton_2d = skeleton if keypoints is None else _skeleton_2d(keypoints.shape[-2], skeleton)
     if kind == "videos":
-        infos = check_videos(sources)
+        infos = check_videos(sources, synchronised=False)
+        if not _same_clock(infos):
+            log.warning("no overlays: the videos differ in length or frame rate")
+            return []
         num_frames = infos[0].num_frames
         fps = fps or infos[0].fps
     else:

@@ -202,6 +202,28 @@ def _twist_dofs() -> list[tuple[str, str, float]]:
 _TRUNK = {"spine": ((-20, 60), (-25, 25), (-35, 35)), "neck": ((-35, 45), (-25, 25), (-60, 60))}
 
 
+def _quiet_warp() -> None:
+    """Keep anny's skinning library (NVIDIA Warp) from printing its start-up banner and
+    "no CUDA driver" (from its C library, to the process's stderr) on every CPU run: it
+    logs errors only, and starts here with the stderr file descriptor silenced."""
+    import os
+
+    try:
+        import warp
+        import warp.config
+    except ImportError:
+        return
+    warp.config.log_level = 40
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            warp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 class BodyModel:
     """Anny bodies: random phenotypes and poses in, vertices and COCO-17 keypoints out.
 
@@ -228,6 +250,7 @@ class BodyModel:
         dtype: str = "float32",
         joints: str = "coco17",
     ) -> None:
+        _quiet_warp()
         import anny
         import anny.paths
         import torch

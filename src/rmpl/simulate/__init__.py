@@ -1,0 +1,1 @@
+"""rmpl simulate: a ground-truth twin of a capture."""
