@@ -11,8 +11,7 @@ error to expect, where in the room, and what limits the rig.
 
 Examples:
   rmpl simulate --cameras 4 --radius 4 --height 2 --people 2 --seconds 10 --out sim/ --run
-  rmpl simulate --rig calib.toml --people 1 --bystander --fps 30,30,25,60 \
-      --offsets 0,3,-5,11 --out sim/
+  rmpl simulate --rig calib.toml --bystander --fps 30,30,25,60 --offsets 0,3,-5,11 --out s2/
   rmpl simulate --rig arc --cameras 3 --board charuco:5x7:0.1:0.075 --out sim/ --run
 
 Outputs: videos/<camera>.mp4, board/<camera>.mp4 (--board), truth/ (calibration.toml,

@@ -1,8 +1,9 @@
 """A calibration board carried through the capture volume, filmed by every camera.
 
 The board is held at chest height (1.0-1.6 m up) by someone walking a slow loop through
-the walking area; they turn it towards each camera in turn, tilting it by up to 35
-degrees, and now and then lay it flat (the floor's orientation). Every camera films the
+the walking area; they turn it towards each camera in turn (2.5 s each, less when the
+sweep is short), tilting it by up to 35 degrees, and now and then lay it flat (the floor's
+orientation). Its back is plain: a camera behind it sees no pattern. Every camera films the
 same instants (frame i of every video), as ``rmpl calibrate --extrinsics`` expects: a
 board recording is made with the cameras started together (a clap, a hardware trigger, or
 frames matched by timestamps as caliscope does).
@@ -30,9 +31,11 @@ log = logging.getLogger(__name__)
 MIN_SQUARE_PX = 10.0
 #: The board's largest side may fill at most this fraction of an image at the centre.
 MAX_FILL = 0.8
+#: Fewest seconds the board faces each camera (and the floor) during a sweep.
+MIN_DWELL = 0.8
 
 
-def check_board(spec: str, rig):
+def check_board(spec: str, rig, seconds: float | None = None):
     """The board of ``spec``, checked against the rig.
 
     Raises:
@@ -43,6 +46,10 @@ def check_board(spec: str, rig):
     from rmpl.calibration.boards import parse_board
 
     board = parse_board(spec)
+    if seconds is not None and seconds / (len(rig) + 1) < MIN_DWELL:
+        raise InputError(None, "--board-seconds", f"a sweep of at least "
+                         f"{MIN_DWELL * (len(rig) + 1):g} s, to face each of the {len(rig)} "
+                         "cameras in turn", seconds)  # fmt: skip
     side = float(np.ptp(board.points, axis=0).max()) + board.square
     centre = np.array([0.0, 0.0, 1.3])
     for cam in rig:
@@ -83,7 +90,8 @@ def board_poses(board, rig, frames: int, fps: float, area: float, rng) -> list:
     loop = 2 * np.pi * s / max(T / fps, 1.0) + rng.uniform(0, 2 * np.pi)
     r = 0.5 * area
     path = np.stack([r * np.cos(loop), r * np.sin(loop), 1.3 + 0.25 * np.sin(0.7 * s)], -1)
-    dwell = max(int(2.5 * fps), 1)  # frames facing one camera
+    # frames facing one camera: 2.5 s, shorter when the sweep would not reach every camera
+    dwell = max(int(min(2.5, T / fps / (len(rig) + 1)) * fps), 1)
     poses = []
     for k in range(T):
         c = (k // dwell) % len(rig)
@@ -131,6 +139,7 @@ def _board_layer(board, cam, x, y, pose, background: np.ndarray) -> np.ndarray:
         value = lam * (r[0] * x + r[1] * y + r[2]) - float(r @ t)
         maps.append((value * ppm + origin).astype(np.float32))
     hidden = ~(lam > 0)
+    back = float(n @ t) <= 0  # its back faces the camera: a plain board, no pattern
     maps[0][hidden] = -1e6
     grey = cv2.remap(
         texture.astype(np.float32),
@@ -149,6 +158,8 @@ def _board_layer(board, cam, x, y, pose, background: np.ndarray) -> np.ndarray:
         borderValue=0.0,
     )
     grey = np.clip(grey, 0, 255) * 0.85 + 15  # printed paper under room light
+    if back:
+        grey = np.full_like(grey, 150.0)
     return background * (1 - alpha[..., None]) + (grey * alpha)[..., None]
 
 

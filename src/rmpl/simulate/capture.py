@@ -29,6 +29,7 @@ Shape glossary: ``S`` motion samples, ``P`` people, ``V`` cameras, ``T`` frames.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import logging
@@ -308,24 +309,18 @@ def _legs(k: np.ndarray) -> float:
     return leg_length(k[None])
 
 
+@functools.lru_cache(maxsize=1)
 def _body_model():
-    import functools
-
+    """anny with HALPE-26 joints, made once per process (it takes seconds)."""
     from rmpl.synth.body import BodyModel
 
-    @functools.lru_cache(maxsize=1)
-    def make():
-        return BodyModel(joints="halpe26")
-
-    return make()
+    return BodyModel(joints="halpe26")
 
 
-def write_truth(out: Path, rig, timing: Timing, world: World, bank_clips) -> None:
-    """``truth/``: calibration.toml, sync.json, poses.npz, people.json."""
+def write_rig_truth(out: Path, rig, timing: Timing) -> None:
+    """``truth/calibration.toml`` and ``truth/sync.json`` (with or without people)."""
     from rmpl.calibration.sync import Sync, write_sync
     from rmpl.io.calibration import save_rig
-    from rmpl.io.poses import Poses3D, save_poses
-    from rmpl.simulate.people import at_times
 
     truth = out / "truth"
     truth.mkdir(parents=True, exist_ok=True)
@@ -341,6 +336,14 @@ def write_truth(out: Path, rig, timing: Timing, world: World, bank_clips) -> Non
         np.zeros(V),
     )
     write_sync(sync, truth / "sync.json")
+
+
+def write_truth(out: Path, timing: Timing, world: World, bank_clips) -> None:
+    """``truth/poses.npz`` and ``truth/people.json``."""
+    from rmpl.io.poses import Poses3D, save_poses
+    from rmpl.simulate.people import at_times
+
+    truth = out / "truth"
     t1 = timing.span[1]  # the reference's clock, as far as any camera recorded
     count = int(np.floor((t1 - timing.start[0]) * timing.fps[0] + 1e-6)) + 1
     times = timing.start[0] + np.arange(count) / timing.fps[0] - world.t0
@@ -421,17 +424,18 @@ def simulate(cfg: SimulateConfig, out: str | Path, progress: bool = True) -> dic
     if cfg.board is not None:
         from rmpl.simulate.board import check_board
 
-        check_board(cfg.board, rig)
+        check_board(cfg.board, rig, cfg.board_seconds)
     out.mkdir(parents=True, exist_ok=True)
     doc = _manifest(out, cfg)
     style = room_style(np.random.default_rng([cfg.seed, 7]), rig.centers)
+    write_rig_truth(out, rig, timing)
     todo = [v for v, cam in enumerate(rig) if not _done(out, cam.name)]
     if cfg.people + int(cfg.bystander) > 0 and (todo or not (out / "truth/poses.npz").exists()):
         world = _world(cfg, rig, timing, rng, progress)
         world.light = random_lighting(np.random.default_rng([cfg.seed, 5]))
         from rmpl.simulate.motion import load_motion_library
 
-        write_truth(out, rig, timing, world, load_motion_library()[0])
+        write_truth(out, timing, world, load_motion_library()[0])
         with Renderer(world.faces, world.vertices.shape[2]) as renderer:
             for v in todo:
                 _render_camera(out, v, rig[v], timing, world, renderer, style, cfg, progress)

@@ -226,6 +226,11 @@ def run_chain(sim: str | Path, methods=METHODS, detector: str | None = None) -> 
         )
     fps = np.asarray(doc["rig"]["fps"], float)
     record: dict = {}
+    from rmpl.simulate.scoring import score_all
+
+    if not (sim / "truth" / "poses.npz").exists():  # a board sweep alone: its calibration
+        found = _calibrate(sim, chain, doc, None, fps, record)
+        return _save(chain, score_all(sim, chain, doc, found, None, {}, record))
     t0 = time.perf_counter()
     kp = _detect(sim, chain, truth_rig, fps, detector)
     record["detect"] = {"status": "ok", "seconds": round(time.perf_counter() - t0, 1)}
@@ -236,9 +241,11 @@ def run_chain(sim: str | Path, methods=METHODS, detector: str | None = None) -> 
         argv = ["sync", "--calib", str(calib), "--keypoints", str(kp), *_fps_args(fps)]
         _step(record, "sync (through the cameras)", sync, argv + ["--out", str(sync)])
     runs = _runs(sim, chain, kp, calib, sync, fps, len(truth_rig), methods, record)
-    from rmpl.simulate.scoring import score_all
-
     scores = score_all(sim, chain, doc, found, sync if sync.exists() else None, runs, record)
+    return _save(chain, scores)
+
+
+def _save(chain: Path, scores: dict) -> dict:
     with atomic_path(chain / "scores.json") as tmp:
         tmp.write_text(json.dumps(scores, indent=1, allow_nan=False) + "\n", encoding="utf-8")
     return scores

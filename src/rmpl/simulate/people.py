@@ -211,9 +211,10 @@ def plan_people(
         i = len(activities)
         person = PersonPlan(i, phenotypes[i], "stand", bystander=True)
         row = _standing_row(bank, kinds)
+        seg = int(np.searchsorted(bank.start, row, side="right") - 1)
         angle = rng.uniform(-np.pi, np.pi)
         pos = (area + 0.3) * np.array([np.cos(angle), np.sin(angle)])
-        person.pieces.append(Piece(-1, np.full(samples, row), 0, angle + np.pi, pos))
+        person.pieces.append(Piece(seg, np.full(samples, row), 0, angle + np.pi, pos))
         plans.append(person)
     return plans
 

@@ -84,6 +84,8 @@ def limits(sim: Path, scores: dict) -> list[str]:
     names = list(scores["rig"]["cameras"])
     fps = np.asarray(scores["rig"]["fps"], float)
     found: list[str] = []
+    if not (sim / "truth" / "poses.npz").exists():
+        return ["No people were filmed: only the board calibration is scored."]
     views = _views_at(sim, names)
     few = float((views < 2).mean()) if views is not None and views.size else 0.0
     if len(names) > 1 and few > FEW_VIEWS_SHARE:
@@ -241,6 +243,11 @@ def _picture(sim: Path, scores: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def _people(s: dict) -> str:
+    who = f"{s['people']} people ({', '.join(s['motion'])})" if s["people"] else "nobody moving"
+    return who + (" and a bystander" if s["bystander"] else "")
+
+
 def write_report(sim: str | Path, scores: dict) -> Path:
     """Write ``report.md`` and ``report.png`` into the simulation folder; returns the md."""
     sim = Path(sim)
@@ -250,8 +257,7 @@ def write_report(sim: str | Path, scores: dict) -> Path:
     lines = [
         "# Simulated capture",
         "",
-        f"{len(rig['cameras'])} cameras ({s['rig']['rig']}), {s['people']} people "
-        f"({', '.join(s['motion'])}){' and a bystander' if s['bystander'] else ''}, "
+        f"{len(rig['cameras'])} cameras ({s['rig']['rig']}), {_people(s)}, "
         f"{s['seconds']:g} s; frame rates {', '.join(f'{f:g}' for f in rig['fps'])}; start "
         f"offsets {', '.join(str(int(o)) for o in rig['offset_frames'])} frames; walking area "
         f"radius {rig['area_m']:.1f} m; videos {encoder()}.",

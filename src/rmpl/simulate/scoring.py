@@ -119,7 +119,8 @@ def score_all(
     from rmpl.io.poses import load_poses
 
     truth_rig = load_rig(sim / "truth" / "calibration.toml")
-    truth_poses = load_poses(sim / "truth" / "poses.npz")
+    people = (sim / "truth" / "poses.npz").exists()
+    truth_poses = load_poses(sim / "truth" / "poses.npz") if people else None
     out: dict = {"settings": doc["settings"], "rig": doc["rig"], "steps": record}
     transform = None
     if found is not None:
@@ -134,6 +135,8 @@ def score_all(
     else:
         out["calibration"] = {"note": "refused; the later steps used the true cameras"}
     out["calibration"]["method"] = "board" if doc["settings"].get("board") else "people"
+    if not people:
+        return _jsonable(out)
     if len(truth_rig) > 1:
         out["sync"] = score.sync_errors(
             read_sync(sync) if sync else None, read_sync(sim / "truth" / "sync.json")
