@@ -100,7 +100,9 @@ def _score(poses_path: Path, truth) -> dict:
         return {}
     pred = _on_truth_frames(load_poses(poses_path), truth)
     pred, true, _ = _same_joints(pred, truth.points.astype(float))
-    return pose_scores(pred, true)["overall"]
+    out = pose_scores(pred, true)["overall"]
+    out["body_mpjpe_mm"] = pose_scores(pred[:, :, :17], true[:, :, :17])["overall"]["mpjpe_mm"]
+    return out
 
 
 def part_cameras(out: Path, args) -> list[str]:
@@ -112,9 +114,9 @@ def part_cameras(out: Path, args) -> list[str]:
     rig, fps, kp = _detected(sim)
     truth = load_poses(sim / "truth" / "poses.npz")
     rows = [
-        "| cameras | rmpl MPJPE mm | rmpl PCK@150 | rmpl coverage | robust MPJPE mm | "
-        "robust PCK@150 | robust coverage |",
-        "|---:|---:|---:|---:|---:|---:|---:|",
+        "| cameras | rmpl MPJPE mm | body | PCK@150 | coverage | robust MPJPE mm | body | "
+        "PCK@150 | coverage |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for n in range(1, len(rig) + 1):
         views = list(np.floor(np.arange(n) * len(rig) / n).astype(int))
@@ -123,27 +125,16 @@ def part_cameras(out: Path, args) -> list[str]:
         for method in ("rmpl", "robust"):
             run = sim / "subsets" / f"n{n}" / method
             if not (run / "poses.npz").exists() and not (method == "robust" and n == 1):
-                argv = [
-                    "run",
-                    "--calib",
-                    str(calib),
-                    "--keypoints",
-                    str(kps),
-                    "--fps",
-                    f"{fps[0]:g}",
-                    "--out",
-                    str(run),
-                    "--no-pictures",
-                    "--formats",
-                    "npz",
-                ]
+                argv = ["run", "--calib", str(calib), "--keypoints", str(kps), "--fps"]
+                argv += [f"{fps[0]:g}", "--out", str(run), "--no-pictures", "--formats", "npz"]
                 _rmpl(argv + ([] if method == "rmpl" else ["--method", method]))
             o = _score(run / "poses.npz", truth)
             if not o or o.get("mpjpe_mm") is None:
-                cells += ["-", "-", "-"]
+                cells += ["-", "-", "-", "-"]
                 continue
             cells += [
                 f"{o['mpjpe_mm']:.1f}",
+                f"{o['body_mpjpe_mm']:.1f}",
                 f"{o['pck']['150']:.1f}%",
                 f"{100 * o['coverage']:.0f}%",
             ]

@@ -404,6 +404,27 @@ def _in_front(cam, points: np.ndarray) -> np.ndarray:
     return (points @ cam.R.T + cam.t)[..., 2] > 0.1
 
 
+def _people_videos(cfg, out: Path, rig, timing: Timing, rng, style, doc: dict, progress: bool):
+    """The people's truth and each camera's video not yet written (resume)."""
+    from rmpl.synth.render import Renderer, random_lighting
+
+    todo = [v for v, cam in enumerate(rig) if not _done(out, cam.name)]
+    if cfg.people + int(cfg.bystander) == 0:
+        return
+    if not todo and (out / "truth/poses.npz").exists():
+        return
+    world = _world(cfg, rig, timing, rng, progress)
+    world.light = random_lighting(np.random.default_rng([cfg.seed, 5]))
+    from rmpl.simulate.motion import load_motion_library
+
+    write_truth(out, timing, world, load_motion_library()[0])
+    with Renderer(world.faces, world.vertices.shape[2]) as renderer:
+        for v in todo:
+            _render_camera(out, v, rig[v], timing, world, renderer, style, cfg, progress)
+            doc["complete"][rig[v].name] = True
+            _write_json(out / "simulate.json", doc)
+
+
 def simulate(cfg: SimulateConfig, out: str | Path, progress: bool = True) -> dict:
     """Simulate the capture ``cfg`` describes into ``out`` (see the module docstring).
 
@@ -414,7 +435,6 @@ def simulate(cfg: SimulateConfig, out: str | Path, progress: bool = True) -> dic
         InputError: bad settings, or ``out`` holding another simulation.
     """
     from rmpl.simulate.render import room_style
-    from rmpl.synth.render import Renderer, random_lighting
 
     out = Path(out)
     rig = build_rig(cfg.rig)
@@ -429,18 +449,7 @@ def simulate(cfg: SimulateConfig, out: str | Path, progress: bool = True) -> dic
     doc = _manifest(out, cfg)
     style = room_style(np.random.default_rng([cfg.seed, 7]), rig.centers)
     write_rig_truth(out, rig, timing)
-    todo = [v for v, cam in enumerate(rig) if not _done(out, cam.name)]
-    if cfg.people + int(cfg.bystander) > 0 and (todo or not (out / "truth/poses.npz").exists()):
-        world = _world(cfg, rig, timing, rng, progress)
-        world.light = random_lighting(np.random.default_rng([cfg.seed, 5]))
-        from rmpl.simulate.motion import load_motion_library
-
-        write_truth(out, timing, world, load_motion_library()[0])
-        with Renderer(world.faces, world.vertices.shape[2]) as renderer:
-            for v in todo:
-                _render_camera(out, v, rig[v], timing, world, renderer, style, cfg, progress)
-                doc["complete"][rig[v].name] = True
-                _write_json(out / "simulate.json", doc)
+    _people_videos(cfg, out, rig, timing, rng, style, doc, progress)
     if cfg.board is not None and not (out / "board" / "board.json").exists():
         from rmpl.simulate.board import sweep
 

@@ -244,7 +244,8 @@ def _picture(sim: Path, scores: dict, path: Path) -> None:
 
 
 def _people(s: dict) -> str:
-    who = f"{s['people']} people ({', '.join(s['motion'])})" if s["people"] else "nobody moving"
+    n = s["people"]
+    who = f"{n} {'person' if n == 1 else 'people'} ({', '.join(s['motion'])})" if n else "nobody"
     return who + (" and a bystander" if s["bystander"] else "")
 
 

@@ -205,9 +205,12 @@ _TRUNK = {"spine": ((-20, 60), (-25, 25), (-35, 35)), "neck": ((-35, 45), (-25, 
 def _quiet_warp() -> None:
     """Keep anny's skinning library (NVIDIA Warp) from printing its start-up banner and
     "no CUDA driver" (from its C library, to the process's stderr) on every CPU run: it
-    logs errors only, and starts here with the stderr file descriptor silenced."""
+    logs errors only, and starts here with the stderr file descriptor silenced. anny's own
+    log says warnings only."""
+    import logging
     import os
 
+    logging.getLogger("anny").setLevel(logging.WARNING)  # "Loading cached model data ..."
     try:
         import warp
         import warp.config
