@@ -209,14 +209,16 @@ def check_videos(paths: Sequence[str | Path], synchronised: bool = True) -> list
             raise InputError(
                 info.path,
                 "frames",
-                f"{first.num_frames} frames like {first.path} (synchronised videos)",
+                f"{first.num_frames} frames like {first.path} (synchronised videos; else "
+                "--sync with rmpl sync's offsets)",
                 f"{info.num_frames} frames",
             )
         if abs(info.fps - first.fps) > 1e-3 * first.fps and synchronised:
             raise InputError(
                 info.path,
                 "fps",
-                f"{first.fps:g} frames/s like {first.path} (synchronised videos)",
+                f"{first.fps:g} frames/s like {first.path} (synchronised videos; else "
+                "--sync with rmpl sync's offsets)",
                 f"{info.fps:g} frames/s",
             )
     if not synchronised and not _same_clock(infos):

@@ -157,6 +157,15 @@ def _calibrate(sim: Path, chain: Path, doc: dict, kp: Path, fps: np.ndarray, rec
         motion_sync,
         ["sync", "--keypoints", str(kp), *_fps_args(fps), "--out", str(motion_sync)],
     )
+    if not motion_sync.exists() and np.ptp(fps) > 0:
+        # the command refuses videos at different rates without --sync (frame i of each
+        # view is another instant); from the 2D cache it cannot tell, so the chain says it
+        record["calibrate (people)"] = {
+            "status": "refused",
+            "line": "cameras at different frame rates need their offsets (rmpl sync) before "
+            "a calibration from people, and the 2D motion did not decide them",
+        }
+        return None
     argv = [
         "calibrate",
         "--from-people",
